@@ -1,0 +1,119 @@
+use super::{BsdfFlags, BsdfSample, TransportMode};
+use crate::math::{luminance, reflect_local, warp, Frame, SolidAnglePdf, INV_2PI, INV_PI};
+use crate::sampler::ONE_MINUS_EPSILON;
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+
+/// TinyRender's modified Phong (FORMAT.md §4.3–4.4):
+/// `f = scale·(Kd/π + Ks·(n+2)/(2π)·max(0, cos α)ⁿ)` with `cos α = reflect(wo)·wi`.
+/// Sampled as a mixture: the cosine-power lobe about `reflect(wo)` with probability `w_s`, the
+/// cosine hemisphere otherwise; the pdf is always the whole mixture pdf.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Phong {
+    pub kd: Rgb,
+    pub ks: Rgb,
+    /// Phong exponent `Ns`.
+    pub exponent: f32,
+    /// Energy clamp: `0.99 / M` when the largest component `M` of `Kd + Ks` exceeds 1.
+    pub scale: f32,
+    /// Probability of sampling the glossy lobe, `Ls / (Ld + Ls)` on scaled average reflectances.
+    pub specular_weight: f32,
+}
+
+impl Phong {
+    /// `kd`, `ks` and `exponent` as read from the MTL. Negative exponents are treated as 0.
+    #[must_use]
+    pub fn new(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
+        let m = (kd + ks).max_element();
+        let scale = if m > 1.0 { 0.99 / m } else { 1.0 };
+        let avg = |c: Rgb| Rgb::splat((c.x + c.y + c.z) / 3.0);
+        let ld = luminance(avg(kd) * scale);
+        let ls = luminance(avg(ks) * scale);
+        // Kd = Ks = 0 gives 0/0 in TinyRender; such a BSDF reflects nothing, any weight works.
+        let specular_weight = if ld + ls > 0.0 { ls / (ld + ls) } else { 0.0 };
+        Self {
+            kd,
+            ks,
+            exponent: exponent.max(0.0),
+            scale,
+            specular_weight,
+        }
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3, _mode: TransportMode) -> Rgb {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let cos_alpha = reflect_local(wo).dot(wi);
+        let mut f = self.kd * INV_PI;
+        if cos_alpha > 0.0 {
+            let lobe = (self.exponent + 2.0) * INV_2PI * libm::powf(cos_alpha, self.exponent);
+            f += self.ks * lobe;
+        }
+        f * self.scale
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let ws = self.specular_weight;
+        let (wi, flags) = if u.x < ws {
+            // Reuse u.x, rescaled to [0, 1), for the lobe direction.
+            let ux = (u.x / ws).min(ONE_MINUS_EPSILON);
+            let local = warp::sample_phong_lobe(Vec2::new(ux, u.y), self.exponent);
+            let frame = Frame::from_normal(reflect_local(wo));
+            (
+                frame.to_world(local),
+                BsdfFlags::REFLECTION.union(BsdfFlags::GLOSSY),
+            )
+        } else {
+            let ux = ((u.x - ws) / (1.0 - ws)).min(ONE_MINUS_EPSILON);
+            (
+                warp::sample_cosine_hemisphere(Vec2::new(ux, u.y)),
+                BsdfFlags::REFLECTION.union(BsdfFlags::DIFFUSE),
+            )
+        };
+        if wi.z <= 0.0 {
+            return None;
+        }
+        Some(BsdfSample {
+            wi,
+            f: self.eval(wo, wi, mode),
+            pdf: self.pdf(wo, wi, mode),
+            flags,
+        })
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3, _mode: TransportMode) -> SolidAnglePdf {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return SolidAnglePdf(0.0);
+        }
+        let ws = self.specular_weight;
+        let mut pdf = (1.0 - ws) * wi.z * INV_PI;
+        if ws > 0.0 {
+            let cos_alpha = reflect_local(wo).dot(wi);
+            pdf += ws * warp::phong_lobe_pdf(cos_alpha, self.exponent);
+        }
+        SolidAnglePdf(pdf)
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn flags(&self) -> BsdfFlags {
+        let mut f = BsdfFlags::REFLECTION;
+        if self.specular_weight > 0.0 {
+            f = f.union(BsdfFlags::GLOSSY);
+        }
+        if self.specular_weight < 1.0 {
+            f = f.union(BsdfFlags::DIFFUSE);
+        }
+        f
+    }
+}

@@ -1,0 +1,281 @@
+//! Binned surface-area-heuristic build straight into caller slices, no allocation.
+
+use super::BvhNode;
+use crate::geometry::Aabb;
+
+/// Leaves hold at most this many primitives unless the centroids cannot be separated.
+pub const MAX_LEAF_PRIMS: usize = 4;
+/// Depth of the build's task stack; subtrees deeper than this become leaves.
+pub const BUILD_STACK: usize = 64;
+const BINS: usize = 16;
+/// Cost of visiting an interior node relative to one primitive test.
+const TRAVERSAL_COST: f32 = 1.0;
+
+/// Number of nodes the caller must provide for `prims` primitives (a binary tree with at most
+/// one primitive per leaf has `2n − 1` nodes). Extra capacity is left untouched.
+#[must_use]
+pub const fn max_nodes(prims: usize) -> usize {
+    if prims == 0 {
+        1
+    } else {
+        2 * prims - 1
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BvhError {
+    /// `nodes` is shorter than [`max_nodes`] of the primitive count.
+    NodeCapacity { needed: usize, given: usize },
+    /// `prim_order` and `bounds` differ in length.
+    PrimOrderLength { needed: usize, given: usize },
+    /// More primitives than a u32 index can address.
+    TooManyPrims,
+    /// The tree would be deeper than [`BUILD_STACK`] with a leaf too large to stop there.
+    TooDeep,
+}
+
+impl core::fmt::Display for BvhError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NodeCapacity { needed, given } => {
+                write!(f, "BVH needs {needed} nodes but {given} were provided")
+            }
+            Self::PrimOrderLength { needed, given } => {
+                write!(f, "BVH needs {needed} primitive slots but {given} were provided")
+            }
+            Self::TooManyPrims => write!(f, "too many primitives for 32-bit indices"),
+            Self::TooDeep => write!(f, "BVH deeper than {BUILD_STACK} levels"),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Default)]
+struct Bin {
+    bounds: Aabb,
+    count: u32,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Task {
+    start: u32,
+    end: u32,
+    /// Node whose `offset` must point at this task's node (second children), or u32::MAX.
+    parent: u32,
+}
+
+struct Split {
+    axis: usize,
+    bin: usize,
+    cost: f32,
+}
+
+/// Builds a BVH over primitives with the given bounds. Writes `prim_order` (a permutation of
+/// `0..bounds.len()`) and the first `n` entries of `nodes`, and returns `n`.
+///
+/// # Errors
+/// When the slices are too short (see [`max_nodes`]) or there are more than `u32::MAX` prims.
+pub fn build(
+    bounds: &[Aabb],
+    nodes: &mut [BvhNode],
+    prim_order: &mut [u32],
+) -> Result<usize, BvhError> {
+    let n = bounds.len();
+    if u32::try_from(n).is_err() {
+        return Err(BvhError::TooManyPrims);
+    }
+    if nodes.len() < max_nodes(n) {
+        return Err(BvhError::NodeCapacity {
+            needed: max_nodes(n),
+            given: nodes.len(),
+        });
+    }
+    if prim_order.len() != n {
+        return Err(BvhError::PrimOrderLength {
+            needed: n,
+            given: prim_order.len(),
+        });
+    }
+    for (i, p) in prim_order.iter_mut().enumerate() {
+        *p = i as u32;
+    }
+    if n == 0 {
+        // An empty scene: one empty leaf-less node that no ray can hit.
+        nodes[0] = BvhNode {
+            min: [f32::INFINITY; 3],
+            max: [f32::NEG_INFINITY; 3],
+            ..BvhNode::default()
+        };
+        return Ok(1);
+    }
+
+    let mut stack = [Task::default(); BUILD_STACK];
+    let mut sp = 1;
+    stack[0] = Task {
+        start: 0,
+        end: n as u32,
+        parent: u32::MAX,
+    };
+    let mut used = 0usize;
+    while sp > 0 {
+        sp -= 1;
+        let mut task = stack[sp];
+        // Descend the left spine of this subtree, pushing right halves.
+        loop {
+            let index = used;
+            used += 1;
+            if task.parent != u32::MAX {
+                nodes[task.parent as usize].offset = index as u32;
+            }
+            let (start, end) = (task.start as usize, task.end as usize);
+            let prims = &mut prim_order[start..end];
+            let mut node_bounds = Aabb::EMPTY;
+            let mut centroid_bounds = Aabb::EMPTY;
+            for &p in prims.iter() {
+                let b = bounds[p as usize];
+                node_bounds = node_bounds.union(b);
+                centroid_bounds = centroid_bounds.grow(b.centroid());
+            }
+            let count = end - start;
+            let make_leaf = |nodes: &mut [BvhNode]| {
+                nodes[index] = BvhNode {
+                    min: node_bounds.min.to_array(),
+                    max: node_bounds.max.to_array(),
+                    offset: start as u32,
+                    count: count as u16,
+                    axis: 0,
+                    pad: 0,
+                };
+            };
+            // Split where the SAH says it pays, or where the leaf would be too large.
+            let split = if count > 1 {
+                choose_split(bounds, prims, &node_bounds, &centroid_bounds)
+            } else {
+                None
+            };
+            let mut mid = split
+                .filter(|s| s.cost < count as f32 || count > MAX_LEAF_PRIMS)
+                .and_then(|s| {
+                    partition(bounds, prims, &centroid_bounds, s.axis, s.bin).map(|m| (s.axis, m))
+                });
+            if mid.is_none() && count > MAX_LEAF_PRIMS {
+                // Centroids that binning cannot separate: split by count.
+                mid = Some((centroid_bounds.extent().max_position(), count / 2));
+            }
+            if sp == BUILD_STACK {
+                if count > usize::from(u16::MAX) {
+                    return Err(BvhError::TooDeep);
+                }
+                mid = None;
+            }
+            let Some((axis, mid)) = mid else {
+                make_leaf(nodes);
+                break;
+            };
+            nodes[index] = BvhNode {
+                min: node_bounds.min.to_array(),
+                max: node_bounds.max.to_array(),
+                offset: 0,
+                count: 0,
+                axis: axis as u8,
+                pad: 0,
+            };
+            let mid = (start + mid) as u32;
+            stack[sp] = Task {
+                start: mid,
+                end: task.end,
+                parent: index as u32,
+            };
+            sp += 1;
+            task = Task {
+                start: task.start,
+                end: mid,
+                parent: u32::MAX,
+            };
+        }
+    }
+    Ok(used)
+}
+
+#[inline]
+fn bin_of(c: f32, lo: f32, extent: f32) -> usize {
+    let b = ((c - lo) / extent * BINS as f32) as usize;
+    b.min(BINS - 1)
+}
+
+/// Best binned-SAH split over all three axes, with the cost in units of primitive tests.
+fn choose_split(
+    bounds: &[Aabb],
+    prims: &[u32],
+    node_bounds: &Aabb,
+    centroid_bounds: &Aabb,
+) -> Option<Split> {
+    let extent = centroid_bounds.extent();
+    let area = node_bounds.surface_area();
+    let mut best: Option<Split> = None;
+    for axis in 0..3 {
+        if !(extent[axis] > 0.0) {
+            continue;
+        }
+        let mut bins = [Bin::default(); BINS];
+        for &p in prims {
+            let b = bounds[p as usize];
+            let i = bin_of(b.centroid()[axis], centroid_bounds.min[axis], extent[axis]);
+            bins[i].count += 1;
+            bins[i].bounds = bins[i].bounds.union(b);
+        }
+        // Sweep from the right to get the suffix areas and counts.
+        let mut right_area = [0.0f32; BINS];
+        let mut right_count = [0u32; BINS];
+        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+        for i in (1..BINS).rev() {
+            acc = acc.union(bins[i].bounds);
+            cnt += bins[i].count;
+            right_area[i] = acc.surface_area();
+            right_count[i] = cnt;
+        }
+        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
+        for i in 0..BINS - 1 {
+            acc = acc.union(bins[i].bounds);
+            cnt += bins[i].count;
+            let (rc, ra) = (right_count[i + 1], right_area[i + 1]);
+            if cnt == 0 || rc == 0 {
+                continue;
+            }
+            let cost = TRAVERSAL_COST
+                + (cnt as f32 * acc.surface_area() + rc as f32 * ra) / area.max(f32::MIN_POSITIVE);
+            if best.as_ref().is_none_or(|b| cost < b.cost) {
+                best = Some(Split {
+                    axis,
+                    bin: i,
+                    cost,
+                });
+            }
+        }
+    }
+    best
+}
+
+/// Moves primitives whose centroid falls in bins `0..=bin` to the front; returns their count,
+/// or `None` if one side would be empty.
+fn partition(
+    bounds: &[Aabb],
+    prims: &mut [u32],
+    centroid_bounds: &Aabb,
+    axis: usize,
+    bin: usize,
+) -> Option<usize> {
+    let (lo, extent) = (centroid_bounds.min[axis], centroid_bounds.extent()[axis]);
+    let left = |p: u32| bin_of(bounds[p as usize].centroid()[axis], lo, extent) <= bin;
+    let mut i = 0;
+    let mut j = prims.len();
+    while i < j {
+        if left(prims[i]) {
+            i += 1;
+        } else {
+            j -= 1;
+            prims.swap(i, j);
+        }
+    }
+    (i > 0 && i < prims.len()).then_some(i)
+}
+

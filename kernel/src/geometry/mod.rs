@@ -1,0 +1,9 @@
+//! Rays, watertight triangle intersection, and ray origins offset by floating-point error bounds.
+
+mod aabb;
+mod ray;
+mod triangle;
+
+pub use aabb::Aabb;
+pub use ray::{offset_ray_origin, spawn_ray, spawn_ray_to, Ray, SHADOW_EPSILON};
+pub use triangle::{intersect_triangle, triangle_point_error, TriangleHit};

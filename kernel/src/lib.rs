@@ -1,0 +1,34 @@
+//! ember's rendering kernel: `#![no_std]`, no allocation, everything on caller-provided slices.
+//!
+//! The host (see `host-cli`) loads scenes, allocates buffers and threads the work; the kernel
+//! only reads and writes the slices it is handed. Modules, one concept each:
+//! - [`math`]: shading frames, warps paired with their pdfs, float error bounds, colour helpers.
+//! - [`sampler`]: the deterministic sampler keyed by (seed, pixel, sample index, dimension).
+//! - [`geometry`]: rays, watertight triangle intersection, robust ray origins.
+//! - [`bvh`]: binned-SAH BVH built into caller slices, fixed-stack traversal.
+//! - [`camera`]: the TinyRender pinhole camera.
+//! - [`bsdf`]: the closed set of BSDFs (enum dispatch, local shading frame).
+//! - [`emitter`]: area emitters sampled by area.
+//! - [`scene`]: [`scene::SceneView`], the borrowed scene every integrator works on.
+//! - [`integrator`]: path tracers (implicit and explicit).
+#![no_std]
+#![forbid(unsafe_code)]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod bsdf;
+pub mod bvh;
+pub mod camera;
+pub mod emitter;
+pub mod geometry;
+pub mod integrator;
+pub mod math;
+pub mod sampler;
+pub mod scene;
+
+pub use glam;
+pub use glam::{Vec2, Vec3};
+
+/// Linear RGB radiance or reflectance.
+pub type Rgb = Vec3;

@@ -1,0 +1,273 @@
+//! The scene as borrowed slices: what every integrator reads.
+
+use crate::bsdf::Bsdf;
+use crate::bvh::Bvh;
+use crate::geometry::{intersect_triangle, triangle_point_error, Ray};
+use crate::math::Frame;
+use crate::Rgb;
+use glam::Vec3;
+
+/// A surface material: its BSDF and its emitted radiance (`Ke`, one-sided, toward the side the
+/// shading normal points to; FORMAT.md §5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    pub bsdf: Bsdf,
+    pub emission: Rgb,
+}
+
+impl Material {
+    #[inline]
+    #[must_use]
+    pub fn is_emissive(&self) -> bool {
+        self.emission != Rgb::ZERO
+    }
+}
+
+/// All scene data, borrowed from the host. Vertex attributes share one index per corner.
+///
+/// Emitter sampling reads `emitter_triangles` (indices of emissive triangles) and
+/// `emitter_cdf` (non-decreasing cumulative selection probabilities, one per entry, the last
+/// one the total). The host chooses the weights; TinyRender's rule is "an emitter uniformly,
+/// then a triangle of it in proportion to area".
+#[derive(Clone, Copy, Debug)]
+pub struct SceneView<'a> {
+    pub positions: &'a [Vec3],
+    pub normals: &'a [Vec3],
+    pub triangles: &'a [[u32; 3]],
+    pub triangle_materials: &'a [u32],
+    pub materials: &'a [Material],
+    pub emitter_triangles: &'a [u32],
+    pub emitter_cdf: &'a [f32],
+    pub bvh: Bvh<'a>,
+}
+
+/// Why a [`SceneView`] is not consistent; checked once by [`SceneView::validate`] so the hot
+/// path can index without checks failing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneError {
+    NormalCount { positions: usize, normals: usize },
+    VertexIndex { triangle: usize, index: u32 },
+    MaterialCount { triangles: usize, materials: usize },
+    MaterialIndex { triangle: usize, index: u32 },
+    EmitterCount { triangles: usize, cdf: usize },
+    EmitterIndex { entry: usize, index: u32 },
+    BvhPrimitive { entry: usize, index: u32 },
+}
+
+impl core::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::NormalCount { positions, normals } => {
+                write!(f, "{positions} positions but {normals} normals")
+            }
+            Self::VertexIndex { triangle, index } => {
+                write!(f, "triangle {triangle} refers to missing vertex {index}")
+            }
+            Self::MaterialCount {
+                triangles,
+                materials,
+            } => write!(f, "{triangles} triangles but {materials} material ids"),
+            Self::MaterialIndex { triangle, index } => {
+                write!(f, "triangle {triangle} refers to missing material {index}")
+            }
+            Self::EmitterCount { triangles, cdf } => {
+                write!(f, "{triangles} emitter triangles but {cdf} cdf entries")
+            }
+            Self::EmitterIndex { entry, index } => {
+                write!(f, "emitter entry {entry} refers to missing triangle {index}")
+            }
+            Self::BvhPrimitive { entry, index } => {
+                write!(f, "BVH entry {entry} refers to missing triangle {index}")
+            }
+        }
+    }
+}
+
+/// A closest hit: triangle index, distance and barycentrics of vertices 1 and 2.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub triangle: u32,
+    pub b1: f32,
+    pub b2: f32,
+}
+
+/// A point on a surface with what shading and ray spawning need.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceInteraction {
+    pub p: Vec3,
+    /// Absolute error bound of `p` per axis (for robust ray origins).
+    pub p_err: Vec3,
+    /// Geometric normal, `normalize(cross(p1 − p0, p2 − p0))` (counter-clockwise is the front).
+    pub ng: Vec3,
+    /// Shading frame around the interpolated vertex normal.
+    pub frame: Frame,
+    /// Direction toward the viewer in the shading frame.
+    pub wo: Vec3,
+    pub material: u32,
+    pub triangle: u32,
+}
+
+impl SurfaceInteraction {
+    /// A ray leaving the surface toward world direction `d`.
+    #[inline]
+    #[must_use]
+    pub fn spawn_ray(&self, d: Vec3) -> Ray {
+        crate::geometry::spawn_ray(self.p, self.p_err, self.ng, d)
+    }
+}
+
+impl<'a> SceneView<'a> {
+    /// Checks every index once.
+    ///
+    /// # Errors
+    /// The first inconsistency found.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let nv = self.positions.len();
+        if self.normals.len() != nv {
+            return Err(SceneError::NormalCount {
+                positions: nv,
+                normals: self.normals.len(),
+            });
+        }
+        for (i, t) in self.triangles.iter().enumerate() {
+            if let Some(&bad) = t.iter().find(|&&v| v as usize >= nv) {
+                return Err(SceneError::VertexIndex {
+                    triangle: i,
+                    index: bad,
+                });
+            }
+        }
+        if self.triangle_materials.len() != self.triangles.len() {
+            return Err(SceneError::MaterialCount {
+                triangles: self.triangles.len(),
+                materials: self.triangle_materials.len(),
+            });
+        }
+        for (i, &m) in self.triangle_materials.iter().enumerate() {
+            if m as usize >= self.materials.len() {
+                return Err(SceneError::MaterialIndex {
+                    triangle: i,
+                    index: m,
+                });
+            }
+        }
+        if self.emitter_cdf.len() != self.emitter_triangles.len() {
+            return Err(SceneError::EmitterCount {
+                triangles: self.emitter_triangles.len(),
+                cdf: self.emitter_cdf.len(),
+            });
+        }
+        for (i, &t) in self.emitter_triangles.iter().enumerate() {
+            if t as usize >= self.triangles.len() {
+                return Err(SceneError::EmitterIndex { entry: i, index: t });
+            }
+        }
+        for (i, &t) in self.bvh.prim_order.iter().enumerate() {
+            if t as usize >= self.triangles.len() {
+                return Err(SceneError::BvhPrimitive { entry: i, index: t });
+            }
+        }
+        Ok(())
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn triangle_vertices(&self, tri: u32) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[tri as usize];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn material(&self, id: u32) -> &'a Material {
+        &self.materials[id as usize]
+    }
+
+    /// Closest hit along the ray.
+    #[inline]
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        self.bvh
+            .traverse::<false, _>(ray.o, ray.d, ray.t_max, |prim, t_max| {
+                let [p0, p1, p2] = self.triangle_vertices(prim);
+                let h = intersect_triangle(ray.o, ray.d, t_max, p0, p1, p2)?;
+                best = Some(Hit {
+                    t: h.t,
+                    triangle: prim,
+                    b1: h.b1,
+                    b2: h.b2,
+                });
+                Some(h.t)
+            });
+        best
+    }
+
+    /// Whether anything blocks the ray before `ray.t_max`.
+    #[inline]
+    #[must_use]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.bvh
+            .traverse::<true, _>(ray.o, ray.d, ray.t_max, |prim, t_max| {
+                let [p0, p1, p2] = self.triangle_vertices(prim);
+                intersect_triangle(ray.o, ray.d, t_max, p0, p1, p2).map(|h| h.t)
+            })
+    }
+
+    /// The surface point at barycentrics `(b1, b2)` of `triangle`, seen from world direction
+    /// `wo_world` (pointing away from the surface).
+    #[inline]
+    #[must_use]
+    pub fn surface_at(&self, triangle: u32, b1: f32, b2: f32, wo_world: Vec3) -> SurfaceInteraction {
+        let [i0, i1, i2] = self.triangles[triangle as usize];
+        let [p0, p1, p2] = self.triangle_vertices(triangle);
+        let b0 = 1.0 - b1 - b2;
+        let p = p0 * b0 + p1 * b1 + p2 * b2;
+        let p_err = triangle_point_error(b0, b1, b2, p0, p1, p2);
+        let ng = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+        let n = |i: u32| self.normals[i as usize];
+        let ns = (n(i0) * b0 + n(i1) * b1 + n(i2) * b2).normalize_or_zero();
+        // Degenerate vertex normals fall back to the geometric normal.
+        let ns = if ns == Vec3::ZERO { ng } else { ns };
+        let frame = Frame::from_normal(if ns == Vec3::ZERO { Vec3::Z } else { ns });
+        SurfaceInteraction {
+            p,
+            p_err,
+            ng,
+            frame,
+            wo: frame.to_local(wo_world),
+            material: self.triangle_materials[triangle as usize],
+            triangle,
+        }
+    }
+
+    /// The interaction for a hit of `ray`.
+    #[inline]
+    #[must_use]
+    pub fn interaction(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
+        self.surface_at(hit.triangle, hit.b1, hit.b2, -ray.d.normalize())
+    }
+
+    /// Radiance emitted from `si` toward its `wo` (one-sided, front = shading normal side).
+    #[inline]
+    #[must_use]
+    pub fn emitted(&self, si: &SurfaceInteraction) -> Rgb {
+        let m = self.material(si.material);
+        if si.wo.z > 0.0 {
+            m.emission
+        } else {
+            Rgb::ZERO
+        }
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn has_emitters(&self) -> bool {
+        !self.emitter_triangles.is_empty()
+    }
+}
