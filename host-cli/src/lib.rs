@@ -1,1 +1,81 @@
-pub fn placeholder() {}
+//! ember's command-line host as a library: scene loading, kernel buffers, parallel rendering,
+//! image output. The `ember` binary and the viewer are thin layers over it.
+
+pub mod error;
+pub mod image;
+pub mod mesh;
+pub mod render;
+pub mod scene_file;
+
+pub use error::{Error, Result};
+
+use ember_kernel::camera::Camera;
+use ember_kernel::integrator::{Integrator, PathSettings};
+use mesh::SceneData;
+use scene_file::{PathDesc, RendererDesc, SceneFile};
+use std::path::Path;
+
+impl From<PathDesc> for PathSettings {
+    fn from(p: PathDesc) -> Self {
+        Self {
+            max_depth: p.max_depth,
+            rr_depth: p.rr_depth,
+            rr_prob: p.rr_prob,
+        }
+    }
+}
+
+/// A scene file with its geometry loaded and checked.
+#[derive(Debug)]
+pub struct LoadedScene {
+    pub file: SceneFile,
+    pub data: SceneData,
+}
+
+impl LoadedScene {
+    /// Reads the TOML and its OBJ/MTL, builds the BVH and validates the kernel view.
+    ///
+    /// # Errors
+    /// Any bad input, with the file named.
+    pub fn load(toml: &Path) -> Result<Self> {
+        let file = SceneFile::load(toml)?;
+        let data = SceneData::load_obj(&file.objfile)?;
+        data.view()
+            .validate()
+            .map_err(|e| Error::in_file(&file.objfile, e.to_string()))?;
+        Ok(Self { file, data })
+    }
+
+    /// The scene camera at the given film size.
+    #[must_use]
+    pub fn camera(&self, width: u32, height: u32) -> Camera {
+        let c = &self.file.camera;
+        Camera::look_at(c.eye.into(), c.at.into(), c.up.into(), c.fov, width, height)
+    }
+
+    /// The integrator, path settings and spp of an offline (`path`) scene.
+    ///
+    /// # Errors
+    /// For a real-time scene, which is not rendered by a path tracer.
+    pub fn path_settings(&self) -> Result<(Integrator, PathSettings, u32)> {
+        match self.file.renderer {
+            RendererDesc::Path {
+                explicit,
+                path,
+                spp,
+            } => Ok((
+                if explicit {
+                    Integrator::PathExplicit
+                } else {
+                    Integrator::PathImplicit
+                },
+                path.into(),
+                spp,
+            )),
+            RendererDesc::Gi { .. } => Err(Error::in_file(
+                &self.file.path,
+                "this is a real-time \"gi\" scene, not a path-traced one",
+            )),
+        }
+    }
+}

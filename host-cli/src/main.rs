@@ -1,1 +1,134 @@
-fn main() {}
+//! `ember`: renders TinyRender scenes.
+
+use clap::{Parser, Subcommand};
+use ember_cli::image::{write_exr, write_png};
+use ember_cli::render::{render, RenderSettings};
+use ember_cli::scene_file::RendererDesc;
+use ember_cli::{Error, LoadedScene, Result};
+use ember_kernel::sampler::DEFAULT_SEED;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "ember",
+    version,
+    about = "ember: a physically based renderer for TinyRender scenes"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to a linear EXR and an sRGB PNG preview beside it.
+    Render(RenderArgs),
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// TinyRender scene file (.toml).
+    scene: PathBuf,
+    /// Output EXR (default: next to the TOML with the same stem, as TinyRender does).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Samples per pixel (default: the scene's `spp`).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Seed of the sampler; the same seed gives the same image bit for bit.
+    #[arg(long, default_value_t = DEFAULT_SEED)]
+    seed: u64,
+    /// Worker threads (default: one per core). Does not change the image.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Film width in pixels (default: the scene's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Film height in pixels (default: the scene's).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Tile side in pixels. Does not change the image.
+    #[arg(long, default_value_t = 16)]
+    tile: u32,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn run_render(a: &RenderArgs) -> Result<()> {
+    let scene = LoadedScene::load(&a.scene)?;
+    for w in &scene.data.warnings {
+        eprintln!("warning: {}: {w}", scene.file.objfile.display());
+    }
+    if let RendererDesc::Gi { .. } = scene.file.renderer {
+        return Err(Error::in_file(
+            &a.scene,
+            "real-time \"gi\" scenes are drawn by ember-view (baked GI viewer), which is not built yet",
+        ));
+    }
+    let (integrator, path, scene_spp) = scene.path_settings()?;
+    let spp = a.spp.unwrap_or(scene_spp);
+    if spp == 0 {
+        return Err(Error::new("--spp must be at least 1"));
+    }
+    let width = a.width.unwrap_or(scene.file.width);
+    let height = a.height.unwrap_or(scene.file.height);
+    if width == 0 || height == 0 {
+        return Err(Error::new("--width and --height must be at least 1"));
+    }
+    let out = a
+        .output
+        .clone()
+        .unwrap_or_else(|| a.scene.with_extension("exr"));
+    let png = out.with_extension("png");
+    let camera = scene.camera(width, height);
+    let settings = RenderSettings {
+        integrator,
+        path,
+        spp,
+        seed: a.seed,
+        tile: a.tile.max(1),
+        threads: a.threads,
+        progress: !a.quiet,
+    };
+    let view = scene.data.view();
+    if !a.quiet {
+        eprintln!(
+            "ember: {} triangles, {} emitters, {width}x{height}, {spp} spp, {integrator:?}, maxDepth {}",
+            scene.data.triangles.len(),
+            scene.data.emitter_count,
+            path.max_depth
+        );
+    }
+    let r = render(&view, &camera, &settings);
+    write_exr(&out, &r.image)?;
+    write_png(&png, &r.image)?;
+    let samples = u64::from(width) * u64::from(height) * u64::from(spp);
+    let mean = r.image.mean();
+    eprintln!(
+        "ember: {:.2} s, {:.2} M samples/s, mean RGB ({:.5}, {:.5}, {:.5}), {} invalid samples",
+        r.seconds,
+        samples as f64 / r.seconds / 1e6,
+        mean.x,
+        mean.y,
+        mean.z,
+        r.invalid_samples
+    );
+    eprintln!("ember: wrote {} and {}", out.display(), png.display());
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Render(a) => run_render(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -72,9 +72,7 @@ impl IndependentSampler {
 impl Sampler for IndependentSampler {
     #[inline]
     fn next_1d(&mut self) -> f32 {
-        let h = mix64(
-            self.key ^ u64::from(self.dimension).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-        );
+        let h = mix64(self.key ^ u64::from(self.dimension).wrapping_mul(0x9E37_79B9_7F4A_7C15));
         self.dimension = self.dimension.wrapping_add(1);
         // 24 high bits: exactly representable, in [0, 1 - 2^-24].
         (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)

@@ -74,7 +74,10 @@ impl core::fmt::Display for SceneError {
                 write!(f, "{triangles} emitter triangles but {cdf} cdf entries")
             }
             Self::EmitterIndex { entry, index } => {
-                write!(f, "emitter entry {entry} refers to missing triangle {index}")
+                write!(
+                    f,
+                    "emitter entry {entry} refers to missing triangle {index}"
+                )
             }
             Self::BvhPrimitive { entry, index } => {
                 write!(f, "BVH entry {entry} refers to missing triangle {index}")
@@ -223,7 +226,13 @@ impl<'a> SceneView<'a> {
     /// `wo_world` (pointing away from the surface).
     #[inline]
     #[must_use]
-    pub fn surface_at(&self, triangle: u32, b1: f32, b2: f32, wo_world: Vec3) -> SurfaceInteraction {
+    pub fn surface_at(
+        &self,
+        triangle: u32,
+        b1: f32,
+        b2: f32,
+        wo_world: Vec3,
+    ) -> SurfaceInteraction {
         let [i0, i1, i2] = self.triangles[triangle as usize];
         let [p0, p1, p2] = self.triangle_vertices(triangle);
         let b0 = 1.0 - b1 - b2;

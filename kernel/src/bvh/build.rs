@@ -41,7 +41,10 @@ impl core::fmt::Display for BvhError {
                 write!(f, "BVH needs {needed} nodes but {given} were provided")
             }
             Self::PrimOrderLength { needed, given } => {
-                write!(f, "BVH needs {needed} primitive slots but {given} were provided")
+                write!(
+                    f,
+                    "BVH needs {needed} primitive slots but {given} were provided"
+                )
             }
             Self::TooManyPrims => write!(f, "too many primitives for 32-bit indices"),
             Self::TooDeep => write!(f, "BVH deeper than {BUILD_STACK} levels"),
@@ -244,11 +247,7 @@ fn choose_split(
             let cost = TRAVERSAL_COST
                 + (cnt as f32 * acc.surface_area() + rc as f32 * ra) / area.max(f32::MIN_POSITIVE);
             if best.as_ref().is_none_or(|b| cost < b.cost) {
-                best = Some(Split {
-                    axis,
-                    bin: i,
-                    cost,
-                });
+                best = Some(Split { axis, bin: i, cost });
             }
         }
     }
@@ -278,4 +277,3 @@ fn partition(
     }
     (i > 0 && i < prims.len()).then_some(i)
 }
-

@@ -149,9 +149,7 @@ mod tests {
         assert!(intersect_triangle(Vec3::new(0.2, 0.2, 1.0), Vec3::Z, 10.0, p0, p1, p2).is_none());
         assert!(intersect_triangle(Vec3::new(0.2, 0.2, 1.0), -Vec3::Z, 0.5, p0, p1, p2).is_none());
         // Degenerate triangle never hits.
-        assert!(
-            intersect_triangle(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z, 10.0, p0, p0, p1).is_none()
-        );
+        assert!(intersect_triangle(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z, 10.0, p0, p0, p1).is_none());
     }
 
     #[test]
