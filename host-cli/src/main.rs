@@ -3,10 +3,10 @@
 use clap::{Parser, Subcommand};
 use ember_cli::image::{write_exr, write_png};
 use ember_cli::render::{render, RenderSettings};
-use ember_cli::scene_file::RendererDesc;
+use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
 use ember_cli::{Error, LoadedScene, Result};
 use ember_kernel::sampler::DEFAULT_SEED;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -56,7 +56,28 @@ struct RenderArgs {
     quiet: bool,
 }
 
+/// More worker threads than this is a typo, not a machine.
+const MAX_THREADS: usize = 4096;
+
 fn run_render(a: &RenderArgs) -> Result<()> {
+    // Command-line values are checked before any work; errors name the scene being rendered.
+    if a.spp == Some(0) {
+        return Err(Error::in_file(&a.scene, "--spp 0: must be at least 1"));
+    }
+    for (flag, v) in [("--width", a.width), ("--height", a.height)] {
+        if let Some(v) = v.filter(|&v| v == 0 || v > MAX_FILM_SIDE) {
+            return Err(Error::in_file(
+                &a.scene,
+                format!("{flag} {v} is out of range 1..={MAX_FILM_SIDE}"),
+            ));
+        }
+    }
+    if a.threads > MAX_THREADS {
+        return Err(Error::in_file(
+            &a.scene,
+            format!("--threads {} is more than {MAX_THREADS}", a.threads),
+        ));
+    }
     let scene = LoadedScene::load(&a.scene)?;
     for w in &scene.data.warnings {
         eprintln!("warning: {}: {w}", scene.file.objfile.display());
@@ -69,19 +90,29 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     }
     let (integrator, path, scene_spp) = scene.path_settings()?;
     let spp = a.spp.unwrap_or(scene_spp);
-    if spp == 0 {
-        return Err(Error::new("--spp must be at least 1"));
-    }
     let width = a.width.unwrap_or(scene.file.width);
     let height = a.height.unwrap_or(scene.file.height);
-    if width == 0 || height == 0 {
-        return Err(Error::new("--width and --height must be at least 1"));
-    }
     let out = a
         .output
         .clone()
         .unwrap_or_else(|| a.scene.with_extension("exr"));
     let png = out.with_extension("png");
+    if png == out {
+        return Err(Error::in_file(
+            &out,
+            "the output must be the EXR (a .png preview is written beside it); use -o NAME.exr",
+        ));
+    }
+    let out_dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !out_dir.is_dir() {
+        return Err(Error::in_file(
+            &out,
+            format!("output directory {} does not exist", out_dir.display()),
+        ));
+    }
     let camera = scene.camera(width, height);
     let settings = RenderSettings {
         integrator,
@@ -103,7 +134,11 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     }
     let r = render(&view, &camera, &settings);
     write_exr(&out, &r.image)?;
-    write_png(&png, &r.image)?;
+    if let Err(e) = write_png(&png, &r.image) {
+        // Leave no half of the output behind.
+        let _ = std::fs::remove_file(&out);
+        return Err(e);
+    }
     let samples = u64::from(width) * u64::from(height) * u64::from(spp);
     let mean = r.image.mean();
     eprintln!(

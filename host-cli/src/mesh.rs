@@ -84,26 +84,63 @@ impl SceneData {
             ignore_points: true,
             ignore_lines: true,
         };
-        let (models, materials) = tobj::load_obj(path, &options)
+        let file = std::fs::File::open(path)
+            .map_err(|e| Error::in_file(path, format!("cannot open OBJ: {e}")))?;
+        // Each `mtllib` is resolved against the OBJ's directory (as tobj::load_obj does); the
+        // loads are recorded so that errors name the MTL file, not the OBJ.
+        let dir = path.parent().unwrap_or(Path::new(""));
+        let mtls = std::cell::RefCell::new(Vec::new());
+        let (models, materials) =
+            tobj::load_obj_buf(&mut std::io::BufReader::new(file), &options, |name| {
+                let mtl = dir.join(name);
+                let r = tobj::load_mtl(&mtl);
+                mtls.borrow_mut()
+                    .push((mtl, r.as_ref().map(|(m, _)| m.len()).map_err(|e| *e)));
+                r
+            })
             .map_err(|e| Error::in_file(path, format!("cannot load OBJ: {e}")))?;
-        let materials = match materials {
-            Ok(m) => m,
-            Err(e) => {
+        let mtls = mtls.into_inner();
+        let obj_name = path
+            .file_name()
+            .unwrap_or(path.as_os_str())
+            .to_string_lossy();
+        for (mtl, r) in &mtls {
+            if let Err(e) = r {
+                let what = if mtl.is_file() {
+                    format!("cannot load MTL: {e}")
+                } else {
+                    "MTL file not found".to_string()
+                };
                 return Err(Error::in_file(
-                    path,
-                    format!("cannot load its MTL material library (mtllib): {e}"),
-                ))
+                    mtl,
+                    format!("{what} (mtllib of {obj_name})"),
+                ));
             }
+        }
+        // tobj appends each MTL's materials in load order: material i came from the MTL whose
+        // cumulative range holds i.
+        let mtl_of = |i: usize| {
+            let mut end = 0;
+            mtls.iter()
+                .filter_map(|(p, r)| r.as_ref().ok().map(|n| (p, *n)))
+                .find(|(_, n)| {
+                    end += n;
+                    i < end
+                })
+                .map_or(path, |(p, _)| p.as_path())
         };
+        let materials = materials
+            .map_err(|e| Error::in_file(path, format!("cannot load its MTL (mtllib): {e}")))?;
         let mut scene = Self::default();
-        for m in &materials {
-            let kd = rgb(path, &m.name, "Kd", m.diffuse)?;
-            let ks = rgb(path, &m.name, "Ks", m.specular)?;
-            let ke = rgb(path, &m.name, "Ke", m.emissive)?;
+        for (i, m) in materials.iter().enumerate() {
+            let mtl = mtl_of(i);
+            let kd = rgb(mtl, &m.name, "Kd", m.diffuse)?;
+            let ks = rgb(mtl, &m.name, "Ks", m.specular)?;
+            let ke = rgb(mtl, &m.name, "Ke", m.emissive)?;
             let ns = m.shininess.unwrap_or(1.0);
             if !ns.is_finite() || ns < 0.0 {
                 return Err(Error::in_file(
-                    path,
+                    mtl,
                     format!("material '{}': Ns = {ns} must be finite and >= 0", m.name),
                 ));
             }

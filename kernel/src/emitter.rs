@@ -37,7 +37,8 @@ fn find_interval(cdf: &[f32], u: f32) -> usize {
 #[must_use]
 pub fn sample_emitter(scene: &SceneView<'_>, u_select: f32, u_pos: Vec2) -> Option<EmitterSample> {
     let cdf = scene.emitter_cdf;
-    if cdf.is_empty() || !(cdf[cdf.len() - 1] > 0.0) {
+    // Written so that a NaN total also means "no emitter".
+    if cdf.is_empty() || cdf[cdf.len() - 1].is_nan() || cdf[cdf.len() - 1] <= 0.0 {
         return None;
     }
     let i = find_interval(cdf, u_select);
@@ -46,7 +47,7 @@ pub fn sample_emitter(scene: &SceneView<'_>, u_select: f32, u_pos: Vec2) -> Opti
     let [p0, p1, p2] = scene.triangle_vertices(triangle);
     let cross = (p1 - p0).cross(p2 - p0);
     let area = 0.5 * cross.length();
-    if !(area > 0.0) || !(prob > 0.0) {
+    if area.is_nan() || area <= 0.0 || prob.is_nan() || prob <= 0.0 {
         return None;
     }
     let b = warp::sample_uniform_triangle(u_pos);

@@ -216,7 +216,7 @@ fn choose_split(
     let area = node_bounds.surface_area();
     let mut best: Option<Split> = None;
     for axis in 0..3 {
-        if !(extent[axis] > 0.0) {
+        if extent[axis].is_nan() || extent[axis] <= 0.0 {
             continue;
         }
         let mut bins = [Bin::default(); BINS];

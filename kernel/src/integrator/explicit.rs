@@ -83,7 +83,7 @@ fn direct_light(
     };
     let to_light = es.p - si.p;
     let dist2 = to_light.length_squared();
-    if !(dist2 > 0.0) {
+    if dist2.is_nan() || dist2 <= 0.0 {
         return Rgb::ZERO;
     }
     let wi_world = to_light / crate::math::sqrt(dist2);

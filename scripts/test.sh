@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Runs ember's whole test suite on a fresh machine: installs what the tests need, checks
+# formatting and lints, then runs every test (slow statistical ones included) in release mode.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/ember-target}"
+export EMBER_TINYRENDER="${EMBER_TINYRENDER:-$PWD/../shared/tinyrender}"
+export CARGO_TERM_COLOR=never
+
+# The reference scenes are read at test time, never copied into the project.
+if [ ! -d "$EMBER_TINYRENDER/data/a5/cbox/tinyrender" ]; then
+    echo "error: TinyRender data not found at $EMBER_TINYRENDER (set EMBER_TINYRENDER)" >&2
+    exit 1
+fi
+
+# Rust components the checks use (present on the project's machines; installed if not).
+if command -v rustup >/dev/null 2>&1; then
+    rustup component list --installed 2>/dev/null | grep -q '^rustfmt' || rustup component add rustfmt
+    rustup component list --installed 2>/dev/null | grep -q '^clippy' || rustup component add clippy
+fi
+
+echo "== cargo fmt --check"
+cargo fmt --all -- --check
+echo "== cargo clippy"
+cargo clippy --workspace --all-targets --release -- -D warnings
+echo "== cargo test (release: the statistical tests run too)"
+cargo test --workspace --release

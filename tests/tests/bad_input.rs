@@ -1,0 +1,491 @@
+//! Bad input to the `ember` binary: every case must exit with status 2, print one line
+//! `error: <file>: <what is wrong>` naming the offending file and the problem, never panic, and
+//! leave no output image (nor a temporary file of the atomic write) behind.
+//!
+//! Run with `-- --nocapture` to see the exact stderr line of every case.
+
+mod cli_util;
+
+use cli_util::{edit, run_ember, TempDir, QUAD_MTL, QUAD_OBJ, SCENE_TOML};
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+/// A case directory holding `scene.toml`, `quad.obj` and `quad.mtl`.
+fn scene_dir(name: &str, toml: &str, obj: &str, mtl: &str) -> (TempDir, PathBuf) {
+    let dir = TempDir::new(name);
+    let scene = dir.write("scene.toml", toml);
+    dir.write("quad.obj", obj);
+    dir.write("quad.mtl", mtl);
+    (dir, scene)
+}
+
+/// `ember render SCENE -q` plus `extra` arguments.
+fn render(scene: &Path, extra: &[&str]) -> Output {
+    let mut args: Vec<std::ffi::OsString> = vec!["render".into(), scene.into(), "-q".into()];
+    args.extend(extra.iter().map(Into::into));
+    run_ember(args)
+}
+
+/// Checks the bad-input contract and prints the error line (see it with `--nocapture`).
+#[track_caller]
+fn assert_bad_input(case: &str, out: &Output, dir: &TempDir, file: &str, phrases: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let ctx = format!("case {case}\n--- stderr:\n{stderr}--- stdout:\n{stdout}");
+    assert!(!stderr.contains("panicked"), "ember panicked; {ctx}");
+    assert_eq!(out.status.code(), Some(2), "exit status; {ctx}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "stderr must be exactly one line; {ctx}");
+    let line = lines[0];
+    assert!(line.starts_with("error: "), "not an error line; {ctx}");
+    assert!(
+        line.contains(file),
+        "error does not name the file {file:?}; {ctx}"
+    );
+    for p in phrases {
+        assert!(line.contains(p), "error lacks {p:?}; {ctx}");
+    }
+    let left = dir.outputs();
+    assert!(left.is_empty(), "output left behind: {left:?}; {ctx}");
+    println!("CASE {case}: {line}");
+}
+
+/// A scene-file case: the TOML is `toml`, the mesh is the valid quad.
+#[track_caller]
+fn toml_case(case: &str, toml: &str, phrases: &[&str]) {
+    let (dir, scene) = scene_dir(case, toml, QUAD_OBJ, QUAD_MTL);
+    let out = render(&scene, &[]);
+    assert_bad_input(case, &out, &dir, "scene.toml", phrases);
+}
+
+/// A mesh case: the TOML is valid, the OBJ and MTL are given.
+#[track_caller]
+fn mesh_case(case: &str, obj: &str, mtl: &str, file: &str, phrases: &[&str]) {
+    let (dir, scene) = scene_dir(case, SCENE_TOML, obj, mtl);
+    let out = render(&scene, &[]);
+    assert_bad_input(case, &out, &dir, file, phrases);
+}
+
+/// `toml` without the table `[name]` (its header and keys).
+fn without_table(toml: &str, name: &str) -> String {
+    let header = format!("[{name}]");
+    assert!(toml.contains(&header), "{header} not in test input");
+    let mut out = String::new();
+    let mut skipping = false;
+    for line in toml.lines() {
+        if line.starts_with('[') {
+            skipping = line.trim() == header;
+        }
+        if !skipping {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+// ---- positive control ----------------------------------------------------------------------
+
+#[test]
+fn valid_scene_renders_exr_and_png() {
+    let (dir, scene) = scene_dir("valid", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    let out = render(&scene, &["--spp", "2", "--threads", "2"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(out.status.success(), "exit {:?}: {stderr}", out.status);
+    assert!(!stderr.contains("error"), "{stderr}");
+    let exr = dir.path().join("scene.exr");
+    let png = dir.path().join("scene.png");
+    assert_eq!(dir.outputs(), vec![exr.clone(), png.clone()], "{stderr}");
+    let image = ember_cli::image::read_exr(&exr).expect("EXR readable");
+    assert_eq!((image.width, image.height), (8, 8));
+    assert_eq!(image.non_finite_count(), 0);
+    // The quad (radiance 1) covers the middle of the view; the corners see black.
+    let mean = image.mean();
+    assert!(
+        mean.min_element() > 0.3 && mean.max_element() <= 1.0,
+        "mean {mean}"
+    );
+    assert!(std::fs::metadata(&png).expect("PNG").len() > 0);
+}
+
+// ---- the scene file ------------------------------------------------------------------------
+
+#[test]
+fn scene_file_missing() {
+    let dir = TempDir::new("scene-missing");
+    let out = render(&dir.path().join("nothere.toml"), &[]);
+    assert_bad_input(
+        "scene file does not exist",
+        &out,
+        &dir,
+        "nothere.toml",
+        &["cannot read scene file", "No such file"],
+    );
+}
+
+#[test]
+fn toml_syntax_error_gives_line() {
+    let toml = edit(
+        SCENE_TOML,
+        "objfile = \"quad.obj\"\n",
+        "objfile = \"quad.obj\"\nthis is not toml\n",
+    );
+    toml_case("TOML syntax error", &toml, &["TOML syntax error", "line 3"]);
+}
+
+#[test]
+fn missing_table_film() {
+    toml_case(
+        "missing [film]",
+        &without_table(SCENE_TOML, "film"),
+        &["missing table [film]"],
+    );
+}
+
+#[test]
+fn missing_table_renderer() {
+    toml_case(
+        "missing [renderer]",
+        &without_table(SCENE_TOML, "renderer"),
+        &["missing table [renderer]"],
+    );
+}
+
+#[test]
+fn missing_table_camera() {
+    toml_case(
+        "missing [camera]",
+        &without_table(SCENE_TOML, "camera"),
+        &["missing table [camera]"],
+    );
+}
+
+#[test]
+fn missing_table_input() {
+    toml_case(
+        "missing [input]",
+        &without_table(SCENE_TOML, "input"),
+        &["missing table [input]"],
+    );
+}
+
+#[test]
+fn missing_objfile() {
+    let toml = edit(SCENE_TOML, "objfile = \"quad.obj\"\n", "");
+    toml_case(
+        "missing [input].objfile",
+        &toml,
+        &["missing key [input].objfile"],
+    );
+}
+
+// ---- wrong types ---------------------------------------------------------------------------
+
+#[test]
+fn max_depth_float() {
+    let toml = edit(SCENE_TOML, "maxDepth = -1", "maxDepth = 4.0");
+    toml_case(
+        "maxDepth = 4.0",
+        &toml,
+        &["[renderer].maxDepth", "must be an integer", "found a float"],
+    );
+}
+
+#[test]
+fn spp_string() {
+    let toml = edit(SCENE_TOML, "spp = 2", "spp = \"8\"");
+    toml_case(
+        "spp = \"8\"",
+        &toml,
+        &["[renderer].spp", "must be an integer", "found a string"],
+    );
+}
+
+#[test]
+fn is_explicit_integer() {
+    let toml = edit(SCENE_TOML, "isExplicit = true", "isExplicit = 1");
+    toml_case(
+        "isExplicit = 1",
+        &toml,
+        &[
+            "[renderer].isExplicit",
+            "must be a boolean",
+            "found an integer",
+        ],
+    );
+}
+
+#[test]
+fn fov_string() {
+    let toml = edit(SCENE_TOML, "fov = 40.0", "fov = \"wide\"");
+    toml_case(
+        "fov = \"wide\"",
+        &toml,
+        &["[camera].fov", "must be a number", "found a string"],
+    );
+}
+
+#[test]
+fn eye_two_components() {
+    let toml = edit(SCENE_TOML, "eye = [0.0, 0.0, 3.0]", "eye = [0, 1]");
+    toml_case(
+        "eye = [0, 1]",
+        &toml,
+        &["[camera].eye", "must have 3 numbers", "found 2"],
+    );
+}
+
+// ---- renderer type -------------------------------------------------------------------------
+
+#[test]
+fn renderer_type_unknown() {
+    let toml = edit(SCENE_TOML, "type = \"path\"", "type = \"banana\"");
+    toml_case(
+        "type = \"banana\"",
+        &toml,
+        &["\"banana\"", "is not a renderer type"],
+    );
+}
+
+#[test]
+fn renderer_type_not_implemented() {
+    let toml = edit(SCENE_TOML, "type = \"path\"", "type = \"ao\"");
+    toml_case(
+        "type = \"ao\"",
+        &toml,
+        &["\"ao\"", "ember does not implement"],
+    );
+}
+
+// ---- out-of-range values -------------------------------------------------------------------
+
+#[test]
+fn spp_negative() {
+    let toml = edit(SCENE_TOML, "spp = 2", "spp = -4");
+    toml_case(
+        "spp = -4",
+        &toml,
+        &["[renderer].spp = -4", "must be a positive integer"],
+    );
+}
+
+#[test]
+fn spp_zero() {
+    let toml = edit(SCENE_TOML, "spp = 2", "spp = 0");
+    toml_case(
+        "spp = 0",
+        &toml,
+        &["[renderer].spp = 0", "must be a positive integer"],
+    );
+}
+
+#[test]
+fn max_depth_below_minus_one() {
+    let toml = edit(SCENE_TOML, "maxDepth = -1", "maxDepth = -2");
+    toml_case(
+        "maxDepth = -2",
+        &toml,
+        &["[renderer].maxDepth = -2", "must be -1"],
+    );
+}
+
+#[test]
+fn rr_prob_above_one() {
+    let toml = edit(SCENE_TOML, "rrProb = 0.95", "rrProb = 1.5");
+    toml_case(
+        "rrProb = 1.5",
+        &toml,
+        &["[renderer].rrProb = 1.5", "must be a probability"],
+    );
+}
+
+#[test]
+fn width_zero() {
+    let toml = edit(SCENE_TOML, "width = 8", "width = 0");
+    toml_case("width = 0", &toml, &["[film].width = 0", "out of range"]);
+}
+
+#[test]
+fn width_absurd() {
+    let toml = edit(SCENE_TOML, "width = 8", "width = 10000000");
+    toml_case(
+        "width = 10000000",
+        &toml,
+        &["[film].width = 10000000", "out of range"],
+    );
+}
+
+// ---- command line --------------------------------------------------------------------------
+
+#[test]
+fn cli_spp_zero() {
+    let (dir, scene) = scene_dir("cli-spp-zero", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    let out = render(&scene, &["--spp", "0"]);
+    assert_bad_input("--spp 0", &out, &dir, "scene.toml", &["--spp"]);
+}
+
+#[test]
+fn cli_width_absurd() {
+    let (dir, scene) = scene_dir("cli-width-absurd", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    let out = render(&scene, &["--width", "10000000", "--height", "10000000"]);
+    assert_bad_input(
+        "--width 10000000 --height 10000000",
+        &out,
+        &dir,
+        "scene.toml",
+        &["--width", "out of range"],
+    );
+}
+
+// ---- OBJ and MTL ---------------------------------------------------------------------------
+
+#[test]
+fn obj_missing() {
+    let toml = edit(
+        SCENE_TOML,
+        "objfile = \"quad.obj\"",
+        "objfile = \"missing.obj\"",
+    );
+    let (dir, scene) = scene_dir("obj-missing", &toml, QUAD_OBJ, QUAD_MTL);
+    let out = render(&scene, &[]);
+    assert_bad_input(
+        "objfile points to a missing file",
+        &out,
+        &dir,
+        "missing.obj",
+        &["not found"],
+    );
+}
+
+#[test]
+fn obj_faces_without_normals() {
+    let obj = edit(QUAD_OBJ, "vn 0 0 1\n", "");
+    let obj = edit(&obj, "f 1//1 2//1 3//1 4//1", "f 1 2 3 4");
+    mesh_case(
+        "OBJ faces without normals",
+        &obj,
+        QUAD_MTL,
+        "quad.obj",
+        &["without vertex normals"],
+    );
+}
+
+#[test]
+fn obj_without_faces() {
+    let obj = edit(QUAD_OBJ, "f 1//1 2//1 3//1 4//1\n", "");
+    mesh_case(
+        "OBJ with no faces",
+        &obj,
+        QUAD_MTL,
+        "quad.obj",
+        &["has no faces"],
+    );
+}
+
+#[test]
+fn obj_face_index_out_of_range() {
+    let obj = edit(QUAD_OBJ, "f 1//1 2//1 3//1 4//1", "f 1//1 2//1 9//1");
+    mesh_case(
+        "OBJ face index out of range",
+        &obj,
+        QUAD_MTL,
+        "quad.obj",
+        &["out of"],
+    );
+}
+
+#[test]
+fn obj_nan_coordinate() {
+    let obj = edit(QUAD_OBJ, "v -1 -1 0", "v nan -1 0");
+    mesh_case(
+        "OBJ with a NaN coordinate",
+        &obj,
+        QUAD_MTL,
+        "quad.obj",
+        &["non-finite"],
+    );
+}
+
+#[test]
+fn mtl_missing() {
+    let obj = edit(QUAD_OBJ, "mtllib quad.mtl", "mtllib nothere.mtl");
+    mesh_case(
+        "mtllib names a missing file",
+        &obj,
+        QUAD_MTL,
+        "nothere.mtl",
+        &["not found"],
+    );
+}
+
+#[test]
+fn mtl_negative_kd() {
+    let mtl = edit(QUAD_MTL, "Kd 0 0 0", "Kd -0.5 0.2 0.2");
+    mesh_case(
+        "MTL with a negative Kd",
+        QUAD_OBJ,
+        &mtl,
+        "quad.mtl",
+        &["material 'light'", "Kd", "non-negative"],
+    );
+}
+
+// ---- output --------------------------------------------------------------------------------
+
+#[test]
+fn output_directory_missing() {
+    let (dir, scene) = scene_dir("out-dir-missing", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    let missing = dir.path().join("no-such-dir");
+    let target = missing.join("x.exr");
+    let out = render(&scene, &["-o", target.to_str().expect("UTF-8 path")]);
+    assert_bad_input(
+        "-o into a missing directory",
+        &out,
+        &dir,
+        "x.exr",
+        &["directory", "does not exist"],
+    );
+    assert!(!missing.exists(), "ember created the output directory");
+}
+
+#[test]
+fn output_directory_missing_absolute() {
+    let missing = Path::new("/nonexistent-dir");
+    assert!(!missing.exists(), "/nonexistent-dir exists on this machine");
+    let (dir, scene) = scene_dir("out-dir-missing-abs", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    let out = render(&scene, &["-o", "/nonexistent-dir/x.exr"]);
+    assert_bad_input(
+        "-o /nonexistent-dir/x.exr",
+        &out,
+        &dir,
+        "/nonexistent-dir/x.exr",
+        &["directory", "does not exist"],
+    );
+    assert!(!missing.exists(), "ember created the output directory");
+}
+
+#[test]
+fn png_preview_unwritable_leaves_no_exr() {
+    // The EXR can be written but the PNG cannot (a directory is in its way): the run fails and
+    // the EXR it had just written is removed, so no half of the output is left.
+    let (dir, scene) = scene_dir("png-blocked", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    std::fs::create_dir(dir.path().join("scene.png")).expect("mkdir");
+    let out = render(&scene, &[]);
+    assert_bad_input(
+        "PNG preview path is a directory",
+        &out,
+        &dir,
+        "scene.png",
+        &["cannot"],
+    );
+}
+
+#[test]
+fn output_named_png() {
+    // `-o x.png` would write the EXR to x.png and then overwrite it with the preview.
+    let (dir, scene) = scene_dir("out-png", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    let target = dir.path().join("x.png");
+    let out = render(&scene, &["-o", target.to_str().expect("UTF-8 path")]);
+    assert_bad_input("-o x.png", &out, &dir, "x.png", &["png"]);
+}

@@ -1,0 +1,157 @@
+//! Shared helpers of the cross-crate tests: where the TinyRender data is, rendering a scene
+//! file at a chosen size, and variance-aware image comparisons.
+#![allow(dead_code)]
+
+use ember_cli::image::Image;
+use ember_cli::render::{render, RenderSettings, Rendered};
+use ember_cli::LoadedScene;
+use ember_kernel::sampler::DEFAULT_SEED;
+use ember_kernel::Rgb;
+use std::path::{Path, PathBuf};
+
+/// The TinyRender data: `$EMBER_TINYRENDER` or `../shared/tinyrender` beside the checkout.
+/// Missing data is a failure, never a skip.
+pub fn tinyrender_dir() -> PathBuf {
+    let dir = std::env::var_os("EMBER_TINYRENDER").map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/tinyrender"),
+        PathBuf::from,
+    );
+    assert!(
+        dir.join("data/a5/cbox/tinyrender").is_dir(),
+        "TinyRender data not found at {} (set EMBER_TINYRENDER to the folder holding data/a5)",
+        dir.display()
+    );
+    dir
+}
+
+pub fn cbox_scene(name: &str) -> PathBuf {
+    tinyrender_dir().join("data/a5/cbox/tinyrender").join(name)
+}
+
+pub fn project_data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../data")
+        .join(rel)
+}
+
+/// Renders a path-traced scene file at `width × height` with `spp` samples.
+pub fn render_scene(toml: &Path, width: u32, height: u32, spp: u32) -> Rendered {
+    render_scene_with(toml, width, height, spp, DEFAULT_SEED, 16, 0)
+}
+
+pub fn render_scene_with(
+    toml: &Path,
+    width: u32,
+    height: u32,
+    spp: u32,
+    seed: u64,
+    tile: u32,
+    threads: usize,
+) -> Rendered {
+    let scene = LoadedScene::load(toml).unwrap_or_else(|e| panic!("{e}"));
+    let (integrator, path, _) = scene.path_settings().unwrap();
+    let camera = scene.camera(width, height);
+    render(
+        &scene.data.view(),
+        &camera,
+        &RenderSettings {
+            integrator,
+            path,
+            spp,
+            seed,
+            tile,
+            threads,
+            progress: false,
+        },
+    )
+}
+
+/// Sum of per-pixel variances of the mean inside each block, divided by the pixel count²:
+/// the variance of each block mean.
+pub fn block_mean_variances(var: &Image, bx: u32, by: u32) -> Vec<Rgb> {
+    let n = f64::from(var.width / bx * (var.height / by));
+    var.block_means(bx, by)
+        .into_iter()
+        .map(|v| (v.as_dvec3() / n).as_vec3())
+        .collect()
+}
+
+/// Two-sided critical |z| for significance `alpha` shared (Šidák) among `tests` tests.
+pub fn critical_z(alpha: f64, tests: usize) -> f64 {
+    let a = 1.0 - (1.0 - alpha).powf(1.0 / tests as f64);
+    // Inverse of the two-sided normal tail by bisection on erfc.
+    let (mut lo, mut hi) = (0.0f64, 40.0f64);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if erfc(mid / std::f64::consts::SQRT_2) > a {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// Complementary error function (W. J. Cody's rational approximations are overkill here; this
+/// is Numerical Recipes' erfcc, relative error < 1.2e-7).
+pub fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let r = t
+        * (-z * z - 1.265_512_23
+            + t * (1.000_023_68
+                + t * (0.374_091_96
+                    + t * (0.096_784_18
+                        + t * (-0.186_288_06
+                            + t * (0.278_868_07
+                                + t * (-1.135_203_98
+                                    + t * (1.488_515_87
+                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
+            .exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+/// Result of comparing an estimate with a reference, channel by channel.
+#[derive(Debug)]
+pub struct ZReport {
+    pub max_abs_z: f64,
+    pub worst: String,
+    pub tests: usize,
+}
+
+/// z-scores of `a − b` where both have known variances of their means.
+pub fn z_scores(label: &str, a: &[Rgb], va: &[Rgb], b: &[Rgb], vb: &[Rgb]) -> ZReport {
+    let mut rep = ZReport {
+        max_abs_z: 0.0,
+        worst: String::new(),
+        tests: 0,
+    };
+    for i in 0..a.len() {
+        for c in 0..3 {
+            let d = f64::from(a[i][c]) - f64::from(b[i][c]);
+            let v = f64::from(va[i][c]) + f64::from(vb[i][c]);
+            let z = if v > 0.0 {
+                d / v.sqrt()
+            } else if d == 0.0 {
+                0.0
+            } else {
+                f64::INFINITY
+            };
+            rep.tests += 1;
+            if z.abs() > rep.max_abs_z {
+                rep.max_abs_z = z.abs();
+                rep.worst = format!(
+                    "{label} #{i} ch{c}: {:.5} vs {:.5}, sd {:.5}, z {z:.2}",
+                    a[i][c],
+                    b[i][c],
+                    v.sqrt()
+                );
+            }
+        }
+    }
+    rep
+}
