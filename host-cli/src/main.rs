@@ -126,8 +126,11 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     let view = scene.data.view();
     if !a.quiet {
         eprintln!(
-            "ember: {} triangles, {} emitters, {width}x{height}, {spp} spp, {integrator:?}, maxDepth {}",
+            "ember: {} triangles ({} BVH nodes in {:.1} ms, {:.0} bytes/triangle), {} emitters, {width}x{height}, {spp} spp, {integrator:?}, maxDepth {}",
             scene.data.triangles.len(),
+            scene.data.bvh_nodes.len(),
+            scene.data.bvh_build_seconds * 1e3,
+            scene.data.kernel_bytes() as f64 / scene.data.triangles.len() as f64,
             scene.data.emitter_count,
             path.max_depth
         );

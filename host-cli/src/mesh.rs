@@ -44,6 +44,8 @@ pub struct SceneData {
     pub bvh_prim_order: Vec<u32>,
     /// Non-fatal remarks about the input (unsupported MTL features and the like).
     pub warnings: Vec<String>,
+    /// Wall time of the last BVH build.
+    pub bvh_build_seconds: f64,
 }
 
 /// The BSDF for an MTL `illum` value: 7 diffuse, 8 diffuse+Phong mixture, anything else Phong
@@ -314,6 +316,7 @@ impl SceneData {
                 )
             })
             .collect();
+        let start = std::time::Instant::now();
         let mut nodes = vec![BvhNode::default(); bvh::max_nodes(bounds.len())];
         let mut order = vec![0u32; bounds.len()];
         let used = bvh::build(&bounds, &mut nodes, &mut order).map_err(|e| e.to_string())?;
@@ -321,6 +324,7 @@ impl SceneData {
         nodes.shrink_to_fit();
         self.bvh_nodes = nodes;
         self.bvh_prim_order = order;
+        self.bvh_build_seconds = start.elapsed().as_secs_f64();
         Ok(())
     }
 

@@ -16,7 +16,8 @@ pub struct Phong {
     pub exponent: f32,
     /// Energy clamp: `0.99 / M` when the largest component `M` of `Kd + Ks` exceeds 1.
     pub scale: f32,
-    /// Probability of sampling the glossy lobe, `Ls / (Ld + Ls)` on scaled average reflectances.
+    /// Probability of sampling the glossy lobe, `Ls / (Ld + Ls)` on luminances of the scaled
+    /// reflectances.
     pub specular_weight: f32,
 }
 
@@ -26,9 +27,10 @@ impl Phong {
     pub fn new(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
         let m = (kd + ks).max_element();
         let scale = if m > 1.0 { 0.99 / m } else { 1.0 };
-        let avg = |c: Rgb| Rgb::splat((c.x + c.y + c.z) / 3.0);
-        let ld = luminance(avg(kd) * scale);
-        let ls = luminance(avg(ks) * scale);
+        // TinyRender: getLuminance(texture average · scale); the average of a constant texture
+        // is the colour itself.
+        let ld = luminance(kd * scale);
+        let ls = luminance(ks * scale);
         // Kd = Ks = 0 gives 0/0 in TinyRender; such a BSDF reflects nothing, any weight works.
         let specular_weight = if ld + ls > 0.0 { ls / (ld + ls) } else { 0.0 };
         Self {

@@ -5,8 +5,12 @@ use crate::geometry::Aabb;
 
 /// Leaves hold at most this many primitives unless the centroids cannot be separated.
 pub const MAX_LEAF_PRIMS: usize = 4;
-/// Depth of the build's task stack; subtrees deeper than this become leaves.
-pub const BUILD_STACK: usize = 64;
+/// Deepest level a node can have (the root is level 0); traversal stacks of this size never
+/// overflow. Below [`SAH_DEPTH`] the build switches to object-median splits, which halve the
+/// primitive count at every level, so up to 2³² primitives fit.
+pub const MAX_DEPTH: usize = 96;
+/// Levels built with the SAH before the build falls back to median splits.
+pub const SAH_DEPTH: u32 = 48;
 const BINS: usize = 16;
 /// Cost of visiting an interior node relative to one primitive test.
 const TRAVERSAL_COST: f32 = 1.0;
@@ -30,7 +34,7 @@ pub enum BvhError {
     PrimOrderLength { needed: usize, given: usize },
     /// More primitives than a u32 index can address.
     TooManyPrims,
-    /// The tree would be deeper than [`BUILD_STACK`] with a leaf too large to stop there.
+    /// The tree would be deeper than [`MAX_DEPTH`] with a leaf too large to stop there.
     TooDeep,
 }
 
@@ -47,7 +51,7 @@ impl core::fmt::Display for BvhError {
                 )
             }
             Self::TooManyPrims => write!(f, "too many primitives for 32-bit indices"),
-            Self::TooDeep => write!(f, "BVH deeper than {BUILD_STACK} levels"),
+            Self::TooDeep => write!(f, "BVH deeper than {MAX_DEPTH} levels"),
         }
     }
 }
@@ -64,6 +68,8 @@ struct Task {
     end: u32,
     /// Node whose `offset` must point at this task's node (second children), or u32::MAX.
     parent: u32,
+    /// Level of this task's node.
+    depth: u32,
 }
 
 struct Split {
@@ -111,12 +117,14 @@ pub fn build(
         return Ok(1);
     }
 
-    let mut stack = [Task::default(); BUILD_STACK];
+    // Pending second children: at most one per level of the current path.
+    let mut stack = [Task::default(); MAX_DEPTH];
     let mut sp = 1;
     stack[0] = Task {
         start: 0,
         end: n as u32,
         parent: u32::MAX,
+        depth: 0,
     };
     let mut used = 0usize;
     while sp > 0 {
@@ -149,27 +157,32 @@ pub fn build(
                     pad: 0,
                 };
             };
-            // Split where the SAH says it pays, or where the leaf would be too large.
-            let split = if count > 1 {
-                choose_split(bounds, prims, &node_bounds, &centroid_bounds)
-            } else {
-                None
-            };
-            let mut mid = split
-                .filter(|s| s.cost < count as f32 || count > MAX_LEAF_PRIMS)
-                .and_then(|s| {
-                    partition(bounds, prims, &centroid_bounds, s.axis, s.bin).map(|m| (s.axis, m))
-                });
-            if mid.is_none() && count > MAX_LEAF_PRIMS {
-                // Centroids that binning cannot separate: split by count.
-                mid = Some((centroid_bounds.extent().max_position(), count / 2));
-            }
-            if sp == BUILD_STACK {
+            let mid = if task.depth as usize + 1 >= MAX_DEPTH {
                 if count > usize::from(u16::MAX) {
                     return Err(BvhError::TooDeep);
                 }
-                mid = None;
-            }
+                None
+            } else if task.depth >= SAH_DEPTH {
+                (count > MAX_LEAF_PRIMS).then(|| median_split(bounds, prims, &centroid_bounds))
+            } else {
+                // Split where the SAH says it pays, or where the leaf would be too large.
+                let split = if count > 1 {
+                    choose_split(bounds, prims, &node_bounds, &centroid_bounds)
+                } else {
+                    None
+                };
+                split
+                    .filter(|s| s.cost < count as f32 || count > MAX_LEAF_PRIMS)
+                    .and_then(|s| {
+                        partition(bounds, prims, &centroid_bounds, s.axis, s.bin)
+                            .map(|m| (s.axis, m))
+                    })
+                    // Centroids that binning cannot separate.
+                    .or_else(|| {
+                        (count > MAX_LEAF_PRIMS)
+                            .then(|| median_split(bounds, prims, &centroid_bounds))
+                    })
+            };
             let Some((axis, mid)) = mid else {
                 make_leaf(nodes);
                 break;
@@ -187,12 +200,14 @@ pub fn build(
                 start: mid,
                 end: task.end,
                 parent: index as u32,
+                depth: task.depth + 1,
             };
             sp += 1;
             task = Task {
                 start: task.start,
                 end: mid,
                 parent: u32::MAX,
+                depth: task.depth + 1,
             };
         }
     }
@@ -252,6 +267,19 @@ fn choose_split(
         }
     }
     best
+}
+
+/// Object-median split along the widest centroid axis: the first half of `prims` gets the
+/// primitives with the smaller centroids. Always makes two non-empty halves.
+fn median_split(bounds: &[Aabb], prims: &mut [u32], centroid_bounds: &Aabb) -> (usize, usize) {
+    let axis = centroid_bounds.extent().max_position();
+    let mid = prims.len() / 2;
+    prims.select_nth_unstable_by(mid, |&a, &b| {
+        let ca = bounds[a as usize].centroid()[axis];
+        let cb = bounds[b as usize].centroid()[axis];
+        ca.total_cmp(&cb)
+    });
+    (axis, mid)
 }
 
 /// Moves primitives whose centroid falls in bins `0..=bin` to the front; returns their count,

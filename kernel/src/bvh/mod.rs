@@ -2,13 +2,13 @@
 //!
 //! Layout: nodes are stored depth-first, so an interior node's first child is the next node
 //! and the second child is at [`BvhNode::offset`]; a leaf's primitives are
-//! `prim_order[offset .. offset + count]`. Traversal keeps a fixed 64-entry stack and visits the
+//! `prim_order[offset .. offset + count]`. Traversal keeps a fixed [`MAX_DEPTH`]-entry stack and visits the
 //! nearer child first. The build (binned SAH, [`build`]) writes straight into caller slices.
 
 mod build;
 mod traverse;
 
-pub use build::{build, max_nodes, BvhError, BUILD_STACK, MAX_LEAF_PRIMS};
+pub use build::{build, max_nodes, BvhError, MAX_DEPTH, MAX_LEAF_PRIMS, SAH_DEPTH};
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 
 use crate::geometry::Aabb;

@@ -3,9 +3,9 @@
 use super::BvhNode;
 use glam::Vec3;
 
-/// Capacity of the traversal stack. The build never produces a deeper tree
-/// ([`super::BUILD_STACK`] bounds it), so the stack cannot overflow.
-pub const TRAVERSAL_STACK: usize = super::BUILD_STACK + 1;
+/// Capacity of the traversal stack: one entry per level below the root, and the build never
+/// makes a tree deeper than [`super::MAX_DEPTH`], so the stack cannot overflow.
+pub const TRAVERSAL_STACK: usize = super::MAX_DEPTH;
 
 /// A built BVH borrowed from caller storage.
 #[derive(Clone, Copy, Debug)]

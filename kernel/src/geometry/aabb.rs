@@ -91,24 +91,21 @@ impl Aabb {
         if t0 > ty1 || ty0 > t1 {
             return false;
         }
-        if ty0 > t0 {
-            t0 = ty0;
-        }
-        if ty1 < t1 {
-            t1 = ty1;
-        }
+        // max/min ignore a NaN (0·∞ for an origin on a slab plane with d = 0): that slab
+        // does not constrain the ray.
+        t0 = t0.max(ty0);
+        t1 = t1.min(ty1);
         let (z0, z1) = sel(self.min.z, self.max.z, neg[2]);
         let tz0 = (z0 - o.z) * inv_d.z;
         let tz1 = (z1 - o.z) * inv_d.z * scale;
         if t0 > tz1 || tz0 > t1 {
             return false;
         }
-        if tz0 > t0 {
-            t0 = tz0;
-        }
-        if tz1 < t1 {
-            t1 = tz1;
-        }
-        t0 < t_max && t1 > 0.0
+        // max/min ignore a NaN (0·∞ for an origin on a slab plane with d = 0): that slab
+        // does not constrain the ray.
+        t0 = t0.max(tz0);
+        t1 = t1.min(tz1);
+        // t0 and t1 are NaN only if the x slab produced them; then x does not constrain.
+        (t0 < t_max || t0.is_nan()) && (t1 > 0.0 || t1.is_nan())
     }
 }

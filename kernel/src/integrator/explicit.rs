@@ -1,5 +1,5 @@
 use super::PathSettings;
-use crate::bsdf::TransportMode;
+use crate::bsdf::{Bsdf, TransportMode};
 use crate::emitter::sample_emitter;
 use crate::geometry::{spawn_ray_to, Ray};
 use crate::sampler::Sampler;
@@ -19,21 +19,25 @@ pub fn li_explicit<S: Sampler>(
         return Rgb::ZERO;
     };
     let si = scene.interaction(ray, &hit);
-    scene.emitted(&si) + li_explicit_from_surface(scene, si, settings, sampler)
+    let bsdf = scene.material(si.material).bsdf;
+    scene.emitted(&si) + li_explicit_from_surface(scene, si, &bsdf, settings, sampler)
 }
 
 /// Reflected radiance leaving `si` toward `si.wo`, estimated by explicit path tracing from `si`
-/// as the first scattering vertex (emission of `si` itself excluded). The GI bake starts here.
+/// as the first scattering vertex (emission of `si` itself excluded), with `first_bsdf` at `si`
+/// and the scene's materials further on. The GI bake starts here with a diffuse-only BSDF.
 /// Per bounce it draws 1 + 2 dimensions for the emitter, 2 for the BSDF and 1 for roulette.
 pub fn li_explicit_from_surface<S: Sampler>(
     scene: &SceneView<'_>,
     mut si: SurfaceInteraction,
+    first_bsdf: &Bsdf,
     settings: &PathSettings,
     sampler: &mut S,
 ) -> Rgb {
     let mut l = Rgb::ZERO;
     let mut beta = Rgb::ONE;
     let mut bounces = 0u32;
+    let mut bsdf = *first_bsdf;
     loop {
         bounces += 1;
         if !settings.allows(bounces) {
@@ -43,10 +47,9 @@ pub fn li_explicit_from_surface<S: Sampler>(
         let u_light = sampler.next_2d();
         let u_bsdf = sampler.next_2d();
         let u_rr = sampler.next_1d();
-        let bsdf = &scene.material(si.material).bsdf;
 
         if bsdf.flags().is_non_specular() {
-            l += beta * direct_light(scene, &si, u_select, u_light);
+            l += beta * direct_light(scene, &si, &bsdf, u_select, u_light);
         }
         // The next vertex only matters if its direct lighting is within the depth limit.
         if !settings.allows(bounces + 1) {
@@ -64,6 +67,7 @@ pub fn li_explicit_from_surface<S: Sampler>(
             break;
         };
         si = scene.interaction(&next, &hit);
+        bsdf = scene.material(si.material).bsdf;
     }
     l
 }
@@ -75,6 +79,7 @@ pub fn li_explicit_from_surface<S: Sampler>(
 fn direct_light(
     scene: &SceneView<'_>,
     si: &SurfaceInteraction,
+    bsdf: &Bsdf,
     u_select: f32,
     u_light: glam::Vec2,
 ) -> Rgb {
@@ -95,7 +100,6 @@ fn direct_light(
     if wi.z <= 0.0 {
         return Rgb::ZERO;
     }
-    let bsdf = &scene.material(si.material).bsdf;
     let f = bsdf.eval(si.wo, wi, TransportMode::Radiance);
     if f == Rgb::ZERO {
         return Rgb::ZERO;

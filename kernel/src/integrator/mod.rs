@@ -10,9 +10,11 @@
 //! probability `rr_prob` and its throughput is divided by `rr_prob`. Bounded depths are
 //! rendered exactly, without roulette.
 
+mod bake;
 mod explicit;
 mod implicit;
 
+pub use bake::{bake_vertex, BakePoint};
 pub use explicit::{li_explicit, li_explicit_from_surface};
 pub use implicit::li_implicit;
 

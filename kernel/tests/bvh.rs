@@ -1,0 +1,813 @@
+//! BVH correctness: structure of the built tree, closest-hit and any-hit traversal against
+//! brute force, watertightness on closed and open meshes, and the build's error cases.
+
+use ember_kernel::bvh::{
+    build, max_nodes, Bvh, BvhError, BvhNode, MAX_LEAF_PRIMS, TRAVERSAL_STACK,
+};
+use ember_kernel::geometry::{intersect_triangle, Aabb};
+use ember_kernel::glam::Vec3;
+use ember_kernel::math::warp;
+use ember_kernel::sampler::{IndependentSampler, Sampler};
+use std::collections::HashMap;
+
+type Tri = [Vec3; 3];
+
+/// Debug builds run fewer rays on the large cases.
+const DEBUG: bool = cfg!(debug_assertions);
+
+struct Rng(IndependentSampler);
+
+impl Rng {
+    fn new(seed: u64) -> Self {
+        Self(IndependentSampler::new(seed, 0, 0))
+    }
+    fn f(&mut self) -> f32 {
+        self.0.next_1d()
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f()
+    }
+    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
+        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
+    }
+    fn dir(&mut self) -> Vec3 {
+        let u = self.0.next_2d();
+        warp::sample_uniform_sphere(u)
+    }
+    fn index(&mut self, n: usize) -> usize {
+        ((self.f() * n as f32) as usize).min(n - 1)
+    }
+    /// A uniform point on the triangle.
+    fn on_triangle(&mut self, t: &Tri) -> Vec3 {
+        let b = warp::sample_uniform_triangle(self.0.next_2d());
+        t[0] * (1.0 - b.x - b.y) + t[1] * b.x + t[2] * b.y
+    }
+}
+
+fn tri_bounds(t: &Tri) -> Aabb {
+    Aabb::from_points(t[0], t[1], t[2])
+}
+
+struct Built {
+    nodes: Vec<BvhNode>,
+    prim_order: Vec<u32>,
+}
+
+impl Built {
+    fn new(tris: &[Tri]) -> Self {
+        let bounds: Vec<Aabb> = tris.iter().map(tri_bounds).collect();
+        let mut nodes = vec![BvhNode::default(); max_nodes(tris.len())];
+        let mut prim_order = vec![0u32; tris.len()];
+        let used = build(&bounds, &mut nodes, &mut prim_order).expect("build");
+        assert!(used >= 1 && used <= max_nodes(tris.len()), "used {used}");
+        nodes.truncate(used);
+        Self { nodes, prim_order }
+    }
+
+    fn bvh(&self) -> Bvh<'_> {
+        Bvh {
+            nodes: &self.nodes,
+            prim_order: &self.prim_order,
+        }
+    }
+}
+
+fn contains(outer: &Aabb, inner: &Aabb) -> bool {
+    outer.min.cmple(inner.min).all() && outer.max.cmpge(inner.max).all()
+}
+
+/// Checks the layout invariants and returns the depth of the tree (nodes on the longest
+/// root-to-leaf path).
+fn validate(tris: &[Tri], b: &Built) -> usize {
+    validate_with(tris, b, MAX_LEAF_PRIMS)
+}
+
+/// [`validate`] allowing leaves of up to `max_leaf` prims with distinct centroids.
+fn validate_with(tris: &[Tri], b: &Built, max_leaf: usize) -> usize {
+    let n = tris.len();
+    let nodes = &b.nodes;
+    // prim_order is a permutation of 0..n.
+    let mut seen = vec![false; n];
+    for &p in &b.prim_order {
+        assert!(
+            (p as usize) < n && !seen[p as usize],
+            "prim_order not a permutation"
+        );
+        seen[p as usize] = true;
+    }
+    assert!(nodes.len() <= max_nodes(n));
+    if n == 0 {
+        assert_eq!(nodes.len(), 1);
+        assert!(nodes[0].bounds().is_empty());
+        return 1;
+    }
+    // Depth-first walk: every node reached once, every prim slot covered by exactly one leaf.
+    let mut covered = vec![false; n];
+    let mut visited = vec![false; nodes.len()];
+    // (node, depth); returns subtree size through an explicit stack of pending checks.
+    fn subtree(
+        i: usize,
+        depth: usize,
+        max_leaf: usize,
+        tris: &[Tri],
+        b: &Built,
+        covered: &mut [bool],
+        visited: &mut [bool],
+        max_depth: &mut usize,
+    ) -> usize {
+        let nodes = &b.nodes;
+        assert!(
+            i < nodes.len(),
+            "child index {i} out of {} nodes",
+            nodes.len()
+        );
+        assert!(!visited[i], "node {i} reached twice");
+        visited[i] = true;
+        *max_depth = (*max_depth).max(depth);
+        let node = nodes[i];
+        let bounds = node.bounds();
+        if node.is_leaf() {
+            let (first, count) = (node.offset as usize, usize::from(node.count));
+            assert!(first + count <= b.prim_order.len(), "leaf {i} range");
+            let prims = &b.prim_order[first..first + count];
+            let c0 = tri_bounds(&tris[prims[0] as usize]).centroid();
+            let coincident = prims
+                .iter()
+                .all(|&p| tri_bounds(&tris[p as usize]).centroid() == c0);
+            assert!(
+                count <= max_leaf || coincident,
+                "leaf {i} holds {count} prims with distinct centroids"
+            );
+            for (k, &p) in prims.iter().enumerate() {
+                assert!(!covered[first + k], "prim slot {} in two leaves", first + k);
+                covered[first + k] = true;
+                let pb = tri_bounds(&tris[p as usize]);
+                assert!(
+                    contains(&bounds, &pb),
+                    "leaf {i} {bounds:?} misses prim {p} {pb:?}"
+                );
+            }
+            1
+        } else {
+            assert!(node.axis < 3, "node {i} axis {}", node.axis);
+            let second = node.offset as usize;
+            assert!(second > i + 1, "node {i}: second child {second}");
+            for c in [i + 1, second] {
+                assert!(c < nodes.len());
+                assert!(
+                    contains(&bounds, &nodes[c].bounds()),
+                    "node {i} does not contain child {c}"
+                );
+            }
+            let left = subtree(
+                i + 1,
+                depth + 1,
+                max_leaf,
+                tris,
+                b,
+                covered,
+                visited,
+                max_depth,
+            );
+            assert_eq!(second, i + 1 + left, "node {i}: not depth-first");
+            let right = subtree(
+                second,
+                depth + 1,
+                max_leaf,
+                tris,
+                b,
+                covered,
+                visited,
+                max_depth,
+            );
+            1 + left + right
+        }
+    }
+    let mut max_depth = 0;
+    let size = subtree(
+        0,
+        1,
+        max_leaf,
+        tris,
+        b,
+        &mut covered,
+        &mut visited,
+        &mut max_depth,
+    );
+    assert_eq!(size, nodes.len(), "unreachable nodes");
+    assert!(covered.iter().all(|&c| c), "prims in no leaf");
+    // The root bounds everything.
+    let all = tris.iter().map(tri_bounds).fold(Aabb::EMPTY, Aabb::union);
+    assert!(contains(&nodes[0].bounds(), &all));
+    max_depth
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scenes
+// ---------------------------------------------------------------------------------------------
+
+fn random_soup(n: usize, seed: u64) -> Vec<Tri> {
+    let mut r = Rng::new(seed);
+    (0..n)
+        .map(|_| {
+            let c = r.vec(-1.0, 1.0);
+            // Sizes from tiny to a quarter of the scene.
+            let s = 0.5 * r.f() * r.f();
+            [c + r.vec(-s, s), c + r.vec(-s, s), c + r.vec(-s, s)]
+        })
+        .collect()
+}
+
+/// 200 copies of one triangle, 100 zero-area ones (collinear or a single point), 100 normal.
+fn degenerate_soup() -> Vec<Tri> {
+    let mut r = Rng::new(77);
+    let base = [
+        Vec3::new(-0.5, -0.5, 0.1),
+        Vec3::new(0.6, -0.4, 0.0),
+        Vec3::new(0.0, 0.7, -0.2),
+    ];
+    let mut v = vec![base; 200];
+    for i in 0..100 {
+        let a = r.vec(-1.0, 1.0);
+        if i % 2 == 0 {
+            let b = r.vec(-1.0, 1.0);
+            v.push([a, (a + b) * 0.5, b]);
+        } else {
+            v.push([a, a, a]);
+        }
+    }
+    v.extend(random_soup(100, 78));
+    v
+}
+
+/// Triangles whose bounding-box centroids are all the same point. Coordinates are multiples
+/// of 2⁻¹⁰ so that c ± a and the centroid (min + max)/2 are exact in f32.
+fn same_centroid_soup(n: usize) -> Vec<Tri> {
+    let mut r = Rng::new(91);
+    let q = |v: Vec3| (v * 1024.0).round() / 1024.0;
+    let c = Vec3::new(0.25, -0.5, 0.125);
+    (0..n)
+        .map(|_| {
+            let a = q(r.vec(-1.0, 1.0));
+            // |b| ≤ |a| per axis, so the bounds are exactly c ± |a|.
+            let b = q(a * r.vec(-1.0, 1.0));
+            [c + a, c - a, c + b]
+        })
+        .collect()
+}
+
+/// A bumpy height field of `n x n` quads (two triangles each, shared edges), z up.
+fn grid(n: usize) -> (Vec<Tri>, Vec<Vec3>) {
+    let h = |i: usize, j: usize| {
+        let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+        Vec3::new(x, y, 0.1 * (7.0 * x).sin() * (5.0 * y).cos())
+    };
+    let mut tris = Vec::new();
+    let mut verts = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            verts.push(h(i, j));
+        }
+    }
+    for i in 0..n {
+        for j in 0..n {
+            let (a, b, c, d) = (h(i, j), h(i + 1, j), h(i + 1, j + 1), h(i, j + 1));
+            tris.push([a, b, c]);
+            tris.push([a, c, d]);
+        }
+    }
+    (tris, verts)
+}
+
+/// Subdivided icosahedron on the unit sphere with shared vertices: `20·4^levels` triangles.
+fn icosphere(levels: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut verts: Vec<Vec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
+    .collect();
+    let mut faces: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut midpoint = |a: u32, b: u32, verts: &mut Vec<Vec3>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                verts.push(((verts[a as usize] + verts[b as usize]) * 0.5).normalize());
+                (verts.len() - 1) as u32
+            })
+        };
+        let mut next = Vec::with_capacity(faces.len() * 4);
+        for [a, b, c] in faces {
+            let ab = midpoint(a, b, &mut verts);
+            let bc = midpoint(b, c, &mut verts);
+            let ca = midpoint(c, a, &mut verts);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        faces = next;
+    }
+    (verts, faces)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Queries against brute force
+// ---------------------------------------------------------------------------------------------
+
+fn brute_closest(tris: &[Tri], o: Vec3, d: Vec3) -> Option<(u32, f32)> {
+    let mut best: Option<(u32, f32)> = None;
+    for (i, t) in tris.iter().enumerate() {
+        if let Some(h) = intersect_triangle(o, d, f32::INFINITY, t[0], t[1], t[2]) {
+            if best.is_none_or(|(_, bt)| h.t < bt) {
+                best = Some((i as u32, h.t));
+            }
+        }
+    }
+    best
+}
+
+fn bvh_closest(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> Option<(u32, f32)> {
+    let mut best: Option<(u32, f32)> = None;
+    let hit = b.bvh().traverse::<false, _>(o, d, t_max, |prim, tmax| {
+        let t = &tris[prim as usize];
+        let h = intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)?;
+        if best.is_none_or(|(_, bt)| h < bt) {
+            best = Some((prim, h));
+        }
+        Some(h)
+    });
+    assert_eq!(hit, best.is_some());
+    best
+}
+
+fn bvh_occluded(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> bool {
+    b.bvh().traverse::<true, _>(o, d, t_max, |prim, tmax| {
+        let t = &tris[prim as usize];
+        intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)
+    })
+}
+
+/// `rays` random rays: origins inside and outside the scene bounds, random directions, a third
+/// of them aimed at a random point of a random triangle. Closest hit must match brute force
+/// (same t, and the same triangle unless two triangles are hit at the same t); any-hit with a
+/// random finite t_max must agree on occlusion.
+fn check_queries(tris: &[Tri], b: &Built, rays: usize, seed: u64) {
+    let scene = tris.iter().map(tri_bounds).fold(Aabb::EMPTY, Aabb::union);
+    let (c, r) = (scene.centroid(), 0.5 * scene.extent().length().max(1e-3));
+    let mut rng = Rng::new(seed);
+    let (mut hits, mut occluded) = (0, 0);
+    for i in 0..rays {
+        let o = match i % 3 {
+            0 => scene.min + (scene.max - scene.min) * rng.vec(0.0, 1.0),
+            _ => c + rng.dir() * (r * rng.range(1.05, 3.0)),
+        };
+        let d = if i % 3 == 2 && !tris.is_empty() {
+            let k = rng.index(tris.len());
+            let target = rng.on_triangle(&tris[k]);
+            (target - o).normalize_or(Vec3::X)
+        } else {
+            rng.dir()
+        };
+        let brute = brute_closest(tris, o, d);
+        let fast = bvh_closest(b, tris, o, d, f32::INFINITY);
+        match (brute, fast) {
+            (None, None) => {}
+            (Some((bp, bt)), Some((fp, ft))) => {
+                hits += 1;
+                let tol = 1e-6 * bt.abs();
+                assert!(
+                    (bt - ft).abs() <= tol,
+                    "ray {i} o={o} d={d}: t {ft} vs brute {bt}"
+                );
+                if bp != fp {
+                    // A tie: the BVH's triangle must be hit at the same distance.
+                    let t = &tris[fp as usize];
+                    let h = intersect_triangle(o, d, f32::INFINITY, t[0], t[1], t[2])
+                        .expect("BVH triangle not hit");
+                    assert!(
+                        (h.t - bt).abs() <= tol,
+                        "ray {i}: BVH prim {fp} at {} vs brute prim {bp} at {bt}",
+                        h.t
+                    );
+                }
+            }
+            _ => panic!("ray {i} o={o} d={d}: brute {brute:?} vs BVH {fast:?}"),
+        }
+        // Any hit with a finite t_max.
+        let t_max = rng.range(0.0, 2.0 * r);
+        let brute_occ = tris
+            .iter()
+            .filter_map(|t| intersect_triangle(o, d, t_max, t[0], t[1], t[2]))
+            .map(|h| h.t)
+            .fold(None, |m: Option<f32>, t| Some(m.map_or(t, |m| m.min(t))));
+        let fast_occ = bvh_occluded(b, tris, o, d, t_max);
+        if brute_occ.is_some() != fast_occ {
+            // Only a hit within rounding of t_max may be seen by one and not the other.
+            let near = brute_occ.is_some_and(|t| (t - t_max).abs() <= 1e-5 * t_max);
+            assert!(
+                near,
+                "ray {i} o={o} d={d} t_max={t_max}: brute {brute_occ:?} vs BVH {fast_occ}"
+            );
+        }
+        occluded += usize::from(fast_occ);
+        // The closest hit must also be found with t_max just above it.
+        if let Some((_, bt)) = brute {
+            let again = bvh_closest(b, tris, o, d, bt * 1.0001);
+            assert!(
+                again.is_some(),
+                "ray {i}: lost hit at t = {bt} with t_max above it"
+            );
+        }
+    }
+    // The test must exercise both outcomes.
+    if tris.len() >= 7 {
+        assert!(hits > rays / 10 && hits < rays, "{hits} hits of {rays}");
+        assert!(occluded > 0, "no occluded rays");
+    }
+}
+
+fn check_soup(tris: &[Tri], rays: usize, seed: u64) -> usize {
+    let b = Built::new(tris);
+    let depth = validate(tris, &b);
+    assert!(
+        depth <= TRAVERSAL_STACK,
+        "tree depth {depth} exceeds the traversal stack"
+    );
+    check_queries(tris, &b, rays, seed);
+    depth
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tests
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn random_soups_build_valid_trees_and_match_brute_force() {
+    for (k, &n) in [1usize, 2, 7, 100, 5000].iter().enumerate() {
+        let tris = random_soup(n, 10 + k as u64);
+        let rays = if n >= 5000 && DEBUG { 2_000 } else { 10_000 };
+        check_soup(&tris, rays, 20 + k as u64);
+    }
+}
+
+#[test]
+fn degenerate_and_coincident_triangles() {
+    let tris = degenerate_soup();
+    check_soup(&tris, 10_000, 31);
+    // Only copies of one triangle: every centroid coincides.
+    let base = degenerate_soup()[0];
+    check_soup(&vec![base; 300], 2_000, 32);
+    // Only zero-area triangles: nothing can be hit.
+    let flat: Vec<Tri> = degenerate_soup()[200..300].to_vec();
+    let b = Built::new(&flat);
+    validate(&flat, &b);
+    let mut rng = Rng::new(33);
+    for _ in 0..2_000 {
+        let (o, d) = (rng.vec(-2.0, 2.0), rng.dir());
+        assert_eq!(bvh_closest(&b, &flat, o, d, f32::INFINITY), None);
+        assert_eq!(brute_closest(&flat, o, d), None);
+    }
+}
+
+#[test]
+fn triangles_with_one_centroid() {
+    let tris = same_centroid_soup(500);
+    let c0 = tri_bounds(&tris[0]).centroid();
+    assert!(tris.iter().all(|t| tri_bounds(t).centroid() == c0));
+    check_soup(&tris, 10_000, 41);
+}
+
+#[test]
+fn grid_with_shared_edges_is_watertight_from_above() {
+    let n = if DEBUG { 30 } else { 60 };
+    let (tris, verts) = grid(n);
+    check_soup(&tris, 10_000, 51);
+    let b = Built::new(&tris);
+    // Vertical rays through every vertex and edge midpoint of the interior, and random points:
+    // the height field covers (0, 1)², so every one of them must hit.
+    let mut targets: Vec<(f32, f32)> = Vec::new();
+    for v in &verts {
+        if v.x > 0.0 && v.x < 1.0 && v.y > 0.0 && v.y < 1.0 {
+            targets.push((v.x, v.y));
+        }
+    }
+    for i in 1..n {
+        for j in 0..n {
+            let (a, c) = (i as f32 / n as f32, (j as f32 + 0.5) / n as f32);
+            targets.extend([(a, c), (c, a), (c, c)]);
+        }
+    }
+    let mut rng = Rng::new(52);
+    for _ in 0..20_000 {
+        targets.push((rng.range(0.01, 0.99), rng.range(0.01, 0.99)));
+    }
+    // Not exactly vertical: a ray with d.x = 0 whose o.x lies on a box face is lost by the
+    // slab test (see `axis_parallel_rays_on_box_faces_are_not_lost`).
+    let mut leaks = Vec::new();
+    for &(x, y) in &targets {
+        for d in [
+            Vec3::new(0.013, -0.007, -1.0).normalize(),
+            Vec3::new(-1e-4, 2e-4, -1.0).normalize(),
+        ] {
+            let o = Vec3::new(x, y, 0.0) - d * 2.0;
+            if bvh_closest(&b, &tris, o, d, f32::INFINITY).is_none() {
+                leaks.push((x, y, d));
+            }
+        }
+    }
+    assert!(
+        leaks.is_empty(),
+        "{} leaks, e.g. {:?}",
+        leaks.len(),
+        &leaks[..leaks.len().min(5)]
+    );
+}
+
+#[test]
+fn closed_icosphere_has_no_leaks() {
+    let (verts, faces) = icosphere(4);
+    assert_eq!(faces.len(), 5120);
+    let tris: Vec<Tri> = faces.iter().map(|f| f.map(|i| verts[i as usize])).collect();
+    let b = Built::new(&tris);
+    let depth = validate(&tris, &b);
+    assert!(depth <= TRAVERSAL_STACK);
+    let rays = if DEBUG { 30_000 } else { 100_000 };
+    let mut rng = Rng::new(61);
+    let mut leaks = Vec::new();
+    let shoot = |o: Vec3, d: Vec3, leaks: &mut Vec<(Vec3, Vec3)>| {
+        match bvh_closest(&b, &tris, o, d, f32::INFINITY) {
+            Some((_, t)) => {
+                // A hit from inside a convex mesh inscribed in the unit sphere.
+                let r = (o + d * t).length();
+                assert!(
+                    t > 0.0 && r <= 1.0 + 1e-5 && r > 0.99,
+                    "o={o} d={d} t={t} r={r}"
+                );
+            }
+            None => leaks.push((o, d)),
+        }
+        assert!(bvh_occluded(&b, &tris, o, d, 10.0) || leaks.last() == Some(&(o, d)));
+    };
+    for i in 0..rays {
+        let o = if i % 2 == 0 {
+            // Near the centre.
+            rng.dir() * rng.range(0.0, 0.01)
+        } else {
+            // Just inside the surface: a surface point pulled 0.1% towards the centre (the
+            // mesh is convex and contains the centre, so this is inside).
+            let k = rng.index(tris.len());
+            rng.on_triangle(&tris[k]) * 0.999
+        };
+        shoot(o, rng.dir(), &mut leaks);
+    }
+    // The hard cases: rays straight through vertices and along shared edges.
+    // (From random origins: rays from the exact centre along directions with a zero
+    // component are the slab-test bug of `axis_parallel_rays_on_box_faces_are_not_lost`.)
+    for (k, v) in verts.iter().enumerate() {
+        let o = rng.dir() * 0.3;
+        shoot(o, (*v - o).normalize(), &mut leaks);
+        if k % 4 == 0 {
+            shoot(*v * 0.999, rng.dir(), &mut leaks);
+        }
+    }
+    for f in &faces {
+        for e in 0..3 {
+            let (a, c) = (verts[f[e] as usize], verts[f[(e + 1) % 3] as usize]);
+            for s in [0.5, rng.f()] {
+                let p = a + (c - a) * s;
+                let o = rng.dir() * 0.5;
+                shoot(o, (p - o).normalize(), &mut leaks);
+            }
+        }
+    }
+    assert!(
+        leaks.is_empty(),
+        "{} leaks, e.g. {:?}",
+        leaks.len(),
+        &leaks[..leaks.len().min(5)]
+    );
+}
+
+/// Regression test for a kernel bug (kernel/src/geometry/aabb.rs, `Aabb::hit`): when a direction component is 0
+/// and the origin lies exactly on that axis' slab plane, `(min - o) * inv_d` is `0 * inf =
+/// NaN`; the NaN then survives the `if ty0 > t0 { t0 = ty0 }` updates and the final
+/// `t0 < t_max` is false, so the box is reported as missed. Every subtree whose box has a face
+/// on the ray is skipped. A small case: a strip of 16 triangles over x ∈ [−4, 4], ray
+/// o = (0, 0.25, 1), d = (0, 0, −1) down the shared edge x = 0: `intersect_triangle`
+/// (watertight) hits one of the two triangles there, the BVH finds nothing. Realistic cases: the exact centre of an icosphere shooting along ±z, or
+/// towards a vertex with a zero coordinate; vertical rays through the vertices of a grid.
+/// Fix: update with NaN-ignoring `t0 = t0.max(ty0)`, `t1 = t1.min(ty1)` (IEEE maxNum).
+///
+/// (A kernel bug this test found, fixed in `Aabb::hit`.)
+#[test]
+fn axis_parallel_rays_on_box_faces_are_not_lost() {
+    let mut leaks: Vec<String> = Vec::new();
+    let mut check = |name: &str, tris: &[Tri], b: &Built, o: Vec3, d: Vec3| {
+        let brute = brute_closest(tris, o, d);
+        assert!(
+            brute.is_some(),
+            "{name}: the intersector itself leaks at o={o} d={d}"
+        );
+        if bvh_closest(b, tris, o, d, f32::INFINITY).is_none() {
+            leaks.push(format!("{name} o={o} d={d}"));
+        }
+    };
+    // A strip of unit quads along x ∈ [−4, 4]; the ray runs down the shared edge x = 0.
+    let strip: Vec<Tri> = (-4..4)
+        .flat_map(|i| {
+            let x = i as f32;
+            let (a, b) = (Vec3::new(x, 0.0, 0.0), Vec3::new(x + 1.0, 0.0, 0.0));
+            let (c, d) = (Vec3::new(x + 1.0, 1.0, 0.0), Vec3::new(x, 1.0, 0.0));
+            [[a, b, c], [a, c, d]]
+        })
+        .collect();
+    let b = Built::new(&strip);
+    check(
+        "strip edge",
+        &strip,
+        &b,
+        Vec3::new(0.0, 0.25, 1.0),
+        Vec3::NEG_Z,
+    );
+    let (verts, faces) = icosphere(4);
+    let sphere: Vec<Tri> = faces.iter().map(|f| f.map(|i| verts[i as usize])).collect();
+    let b = Built::new(&sphere);
+    for d in [
+        Vec3::X,
+        Vec3::NEG_X,
+        Vec3::Y,
+        Vec3::NEG_Y,
+        Vec3::Z,
+        Vec3::NEG_Z,
+    ] {
+        check("icosphere centre", &sphere, &b, Vec3::ZERO, d);
+    }
+    for v in &verts[..12] {
+        check("icosphere centre to vertex", &sphere, &b, Vec3::ZERO, *v);
+    }
+    let (grid_tris, grid_verts) = grid(10);
+    let b = Built::new(&grid_tris);
+    for v in &grid_verts {
+        if v.x > 0.0 && v.x < 1.0 && v.y > 0.0 && v.y < 1.0 {
+            check(
+                "grid vertex",
+                &grid_tris,
+                &b,
+                Vec3::new(v.x, v.y, 2.0),
+                Vec3::NEG_Z,
+            );
+        }
+    }
+    assert!(
+        leaks.is_empty(),
+        "BVH leaks {} rays the intersector hits: {:?}",
+        leaks.len(),
+        &leaks[..leaks.len().min(4)]
+    );
+}
+
+/// 93 small triangles at −16^e along x, y and z (e = 15 … −15). At every level the binned SAH
+/// can only separate the outermost triangle (all others fall into the last of the 16 bins), so
+/// the tree is a chain of depth 90 with the rest of the scene always in the second (upper)
+/// child. A ray with a negative direction visits the upper child first and pushes the peeled
+/// leaf, one stack entry per level.
+fn deep_chain() -> Vec<Tri> {
+    let mut tris = Vec::new();
+    for e in (-15..=15).rev() {
+        let m = 16f32.powi(e);
+        for axis in 0..3 {
+            let mut c = Vec3::ZERO;
+            c[axis] = -m;
+            let (u, v) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
+            tris.push([c - u - v, c + u - v, c + v]);
+        }
+    }
+    tris
+}
+
+/// Regression test for a kernel bug (kernel/src/bvh/traverse.rs, `TRAVERSAL_STACK` and `Bvh::traverse`, the
+/// `stack[sp] = far as u32` line): the doc comment says the build never produces a tree deeper
+/// than `BUILD_STACK`, but `BUILD_STACK` in kernel/src/bvh/build.rs only bounds the number of
+/// *pending right-hand tasks* (`sp`), not the depth: a split whose large side is the second
+/// child pops straight back to sp = 1, so a chain of such splits is unbounded in depth. With
+/// [`deep_chain`] the build succeeds with depth 90, and traversing
+/// o = (0.5, 0.5, 0.5), d = −(1, 1, 1)/√3 panics with "index out of bounds: the len is 65 but
+/// the index is 65". Fix: carry the depth in `Task` and stop splitting by SAH (object median
+/// or leaf) before it reaches `TRAVERSAL_STACK`, or check `sp` in the traversal.
+///
+/// (A kernel bug this test found, fixed by the depth limit of the build.)
+#[test]
+fn deep_unbalanced_tree_fits_the_traversal_stack() {
+    let tris = deep_chain();
+    let b = Built::new(&tris);
+    // A depth-limited build may end in a large leaf.
+    let depth = validate_with(&tris, &b, tris.len());
+    let (o, d) = (Vec3::splat(0.5), Vec3::splat(-1.0).normalize());
+    let brute = brute_closest(&tris, o, d);
+    assert!(brute.is_some());
+    let fast = bvh_closest(&b, &tris, o, d, f32::INFINITY);
+    assert_eq!(fast.map(|h| h.1), brute.map(|h| h.1));
+    assert!(
+        depth <= TRAVERSAL_STACK,
+        "depth {depth} > {TRAVERSAL_STACK}"
+    );
+    // Rays towards every triangle from around the origin, where the chain nests.
+    let mut rng = Rng::new(71);
+    for t in &tris {
+        let o = rng.vec(-2.0, 2.0);
+        let d = (rng.on_triangle(t) - o).normalize();
+        let brute = brute_closest(&tris, o, d).map(|h| h.1);
+        let fast = bvh_closest(&b, &tris, o, d, f32::INFINITY).map(|h| h.1);
+        assert_eq!(fast, brute, "o={o} d={d}");
+    }
+}
+
+#[test]
+fn build_errors_and_empty_scene() {
+    let tris = random_soup(10, 1);
+    let bounds: Vec<Aabb> = tris.iter().map(tri_bounds).collect();
+    let mut nodes = vec![BvhNode::default(); max_nodes(10) - 1];
+    let mut prims = vec![0u32; 10];
+    assert_eq!(
+        build(&bounds, &mut nodes, &mut prims),
+        Err(BvhError::NodeCapacity {
+            needed: 19,
+            given: 18
+        })
+    );
+    let mut nodes = vec![BvhNode::default(); max_nodes(10)];
+    for len in [9, 11, 0] {
+        let mut prims = vec![0u32; len];
+        assert_eq!(
+            build(&bounds, &mut nodes, &mut prims),
+            Err(BvhError::PrimOrderLength {
+                needed: 10,
+                given: len
+            })
+        );
+    }
+    // Extra capacity is fine and left untouched.
+    let mut nodes = vec![BvhNode::default(); 40];
+    nodes[39].pad = 7;
+    let mut prims = vec![0u32; 10];
+    let used = build(&bounds, &mut nodes, &mut prims).unwrap();
+    assert!(used <= 19);
+    assert_eq!(nodes[39].pad, 7);
+    // No primitives: one empty node that nothing hits; an empty node slice hits nothing.
+    assert_eq!(max_nodes(0), 1);
+    let mut nodes = vec![BvhNode::default(); 1];
+    assert_eq!(build(&[], &mut nodes, &mut []), Ok(1));
+    assert!(nodes[0].bounds().is_empty());
+    let empty = Built {
+        nodes,
+        prim_order: Vec::new(),
+    };
+    validate(&[], &empty);
+    let mut called = false;
+    assert!(!empty
+        .bvh()
+        .traverse::<false, _>(Vec3::ZERO, Vec3::X, f32::INFINITY, |_, _| {
+            called = true;
+            Some(0.0)
+        }));
+    assert!(!called);
+    let none = Bvh {
+        nodes: &[],
+        prim_order: &[],
+    };
+    assert!(!none.traverse::<true, _>(Vec3::ZERO, Vec3::X, 1.0, |_, _| Some(0.0)));
+    assert!(BvhError::TooDeep
+        .to_string()
+        .contains(&ember_kernel::bvh::MAX_DEPTH.to_string()));
+}
