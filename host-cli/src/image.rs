@@ -98,7 +98,7 @@ fn temp_path(path: &Path) -> PathBuf {
 
 /// Writes through `write` to a temporary file, then renames it over `path`; on any error the
 /// temporary is removed and `path` is left as it was.
-fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let tmp = temp_path(path);
     let result = write(&tmp).and_then(|()| {
         std::fs::rename(&tmp, path)

@@ -1,6 +1,7 @@
 //! ember's command-line host as a library: scene loading, kernel buffers, parallel rendering,
 //! image output. The `ember` binary and the viewer are thin layers over it.
 
+pub mod bake;
 pub mod error;
 pub mod image;
 pub mod mesh;
@@ -51,6 +52,26 @@ impl LoadedScene {
     pub fn camera(&self, width: u32, height: u32) -> Camera {
         let c = &self.file.camera;
         Camera::look_at(c.eye.into(), c.at.into(), c.up.into(), c.fov, width, height)
+    }
+
+    /// Bake settings of a `gi` scene (path settings and samples per vertex); other scenes get
+    /// TinyRender's `gi` defaults (maxDepth 5, rrDepth 5, rrProb 0.95, 100 samples).
+    #[must_use]
+    pub fn gi_settings(&self) -> (PathSettings, u32) {
+        match self.file.renderer {
+            RendererDesc::Gi {
+                path,
+                samples_by_vertex,
+            } => (path.into(), samples_by_vertex),
+            RendererDesc::Path { .. } => (
+                PathSettings {
+                    max_depth: 5,
+                    rr_depth: 5,
+                    rr_prob: 0.95,
+                },
+                100,
+            ),
+        }
     }
 
     /// The integrator, path settings and spp of an offline (`path`) scene.

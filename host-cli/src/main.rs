@@ -1,10 +1,12 @@
 //! `ember`: renders TinyRender scenes.
 
 use clap::{Parser, Subcommand};
+use ember_cli::bake::{bake, default_bake_path, write_ply, BakeSettings};
 use ember_cli::image::{write_exr, write_png};
 use ember_cli::render::{render, RenderSettings};
 use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
 use ember_cli::{Error, LoadedScene, Result};
+use ember_kernel::integrator::Integrator;
 use ember_kernel::sampler::DEFAULT_SEED;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -22,8 +24,50 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene to a linear EXR and an sRGB PNG preview beside it.
+    /// Render a scene to a linear EXR and an sRGB PNG preview beside it. Real-time `gi`
+    /// scenes are handed to `ember-view --headless` (installed beside `ember`).
     Render(RenderArgs),
+    /// Bake per-vertex global illumination of a scene to a PLY file.
+    Bake(BakeArgs),
+}
+
+#[derive(clap::Args)]
+struct BakeArgs {
+    /// TinyRender scene file (.toml); a `gi` scene's settings are used, TinyRender's `gi`
+    /// defaults otherwise.
+    scene: PathBuf,
+    /// Output PLY (default: `<scene stem>.bake.ply` beside the TOML, where ember-view looks).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Samples per vertex (default: the scene's `samplesByVertex`).
+    #[arg(long)]
+    samples_per_vertex: Option<u32>,
+    /// Seed of the sampler; the same seed gives the same bake bit for bit.
+    #[arg(long, default_value_t = DEFAULT_SEED)]
+    seed: u64,
+    /// Worker threads (default: one per core). Does not change the result.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum IntegratorArg {
+    Implicit,
+    Explicit,
+    Mis,
+}
+
+impl From<IntegratorArg> for Integrator {
+    fn from(a: IntegratorArg) -> Self {
+        match a {
+            IntegratorArg::Implicit => Self::PathImplicit,
+            IntegratorArg::Explicit => Self::PathExplicit,
+            IntegratorArg::Mis => Self::PathMis,
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -51,6 +95,10 @@ struct RenderArgs {
     /// Tile side in pixels. Does not change the image.
     #[arg(long, default_value_t = 16)]
     tile: u32,
+    /// Integrator (default: the scene's, `isExplicit` choosing explicit or implicit).
+    /// `mis` combines emitter and BSDF sampling by multiple importance sampling.
+    #[arg(long, value_enum)]
+    integrator: Option<IntegratorArg>,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -83,12 +131,10 @@ fn run_render(a: &RenderArgs) -> Result<()> {
         eprintln!("warning: {}: {w}", scene.file.objfile.display());
     }
     if let RendererDesc::Gi { .. } = scene.file.renderer {
-        return Err(Error::in_file(
-            &a.scene,
-            "real-time \"gi\" scenes are drawn by ember-view (baked GI viewer), which is not built yet",
-        ));
+        return render_with_viewer(a);
     }
     let (integrator, path, scene_spp) = scene.path_settings()?;
+    let integrator = a.integrator.map_or(integrator, Integrator::from);
     let spp = a.spp.unwrap_or(scene_spp);
     let width = a.width.unwrap_or(scene.file.width);
     let height = a.height.unwrap_or(scene.file.height);
@@ -157,10 +203,99 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// Hands a real-time scene to `ember-view --headless`, which sits beside this binary: the
+/// GPU stack stays out of `ember` (render nodes and embedders need not link wgpu).
+fn render_with_viewer(a: &RenderArgs) -> Result<()> {
+    let exe = std::env::current_exe()
+        .map_err(|e| Error::new(format!("cannot locate the ember binary: {e}")))?;
+    let viewer = exe.with_file_name(format!("ember-view{}", std::env::consts::EXE_SUFFIX));
+    if !viewer.is_file() {
+        return Err(Error::in_file(
+            &a.scene,
+            format!(
+                "real-time \"gi\" scenes are drawn by ember-view, which was not found at {} (build it: cargo build --release -p ember-viewer)",
+                viewer.display()
+            ),
+        ));
+    }
+    let mut cmd = std::process::Command::new(&viewer);
+    cmd.arg(&a.scene).arg("--headless");
+    if let Some(o) = &a.output {
+        cmd.arg("-o").arg(o);
+    }
+    if let Some(n) = a.spp {
+        cmd.arg("--samples-per-vertex").arg(n.to_string());
+    }
+    if let Some(w) = a.width {
+        cmd.arg("--width").arg(w.to_string());
+    }
+    if let Some(h) = a.height {
+        cmd.arg("--height").arg(h.to_string());
+    }
+    cmd.arg("--seed").arg(a.seed.to_string());
+    cmd.arg("--threads").arg(a.threads.to_string());
+    if a.quiet {
+        cmd.arg("-q");
+    }
+    let status = cmd
+        .status()
+        .map_err(|e| Error::in_file(&viewer, format!("cannot run: {e}")))?;
+    if status.success() {
+        Ok(())
+    } else {
+        // ember-view has printed its own error line.
+        std::process::exit(status.code().unwrap_or(1));
+    }
+}
+
+fn run_bake(a: &BakeArgs) -> Result<()> {
+    if a.samples_per_vertex == Some(0) {
+        return Err(Error::in_file(
+            &a.scene,
+            "--samples-per-vertex 0: must be at least 1",
+        ));
+    }
+    if a.threads > MAX_THREADS {
+        return Err(Error::in_file(
+            &a.scene,
+            format!("--threads {} is more than {MAX_THREADS}", a.threads),
+        ));
+    }
+    let scene = LoadedScene::load(&a.scene)?;
+    let (path, spv) = scene.gi_settings();
+    let settings = BakeSettings {
+        path,
+        samples_per_vertex: a.samples_per_vertex.unwrap_or(spv),
+        seed: a.seed,
+        threads: a.threads,
+        progress: !a.quiet,
+    };
+    let out = a
+        .output
+        .clone()
+        .unwrap_or_else(|| default_bake_path(&a.scene));
+    let (mesh, r) = bake(&scene, &settings)?;
+    write_ply(&out, &mesh)?;
+    eprintln!(
+        "ember: baked {} vertex keys ({} face corners, {} vertices) x {} samples in {:.2} s, {:.2} M paths/s; deduplication saved {} paths ({:.1}%)",
+        r.unique_keys,
+        r.face_corners,
+        mesh.positions.len(),
+        settings.samples_per_vertex,
+        r.seconds,
+        r.paths_traced as f64 / r.seconds / 1e6,
+        r.paths_saved,
+        100.0 * r.paths_saved as f64 / (r.paths_saved + r.paths_traced).max(1) as f64
+    );
+    eprintln!("ember: wrote {}", out.display());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Render(a) => run_render(a),
+        Command::Bake(a) => run_bake(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -46,6 +46,8 @@ pub struct SceneData {
     pub warnings: Vec<String>,
     /// Wall time of the last BVH build.
     pub bvh_build_seconds: f64,
+    /// The MTL files the OBJ loaded.
+    pub mtl_files: Vec<std::path::PathBuf>,
 }
 
 /// The BSDF for an MTL `illum` value: 7 diffuse, 8 diffuse+Phong mixture, anything else Phong
@@ -133,7 +135,10 @@ impl SceneData {
         };
         let materials = materials
             .map_err(|e| Error::in_file(path, format!("cannot load its MTL (mtllib): {e}")))?;
-        let mut scene = Self::default();
+        let mut scene = Self {
+            mtl_files: mtls.iter().map(|(p, _)| p.clone()).collect(),
+            ..Self::default()
+        };
         for (i, m) in materials.iter().enumerate() {
             let mtl = mtl_of(i);
             let kd = rgb(mtl, &m.name, "Kd", m.diffuse)?;

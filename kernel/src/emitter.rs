@@ -69,6 +69,27 @@ pub fn sample_emitter(scene: &SceneView<'_>, u_select: f32, u_pos: Vec2) -> Opti
     })
 }
 
+/// Density per unit area with which [`sample_emitter`] picks points on `triangle` (0 for a
+/// triangle that is not sampled). `emitter_triangles` is sorted ascending, so this is a binary
+/// search; multiple importance sampling calls it for emitters hit by BSDF sampling.
+#[inline]
+#[must_use]
+pub fn emitter_pdf(scene: &SceneView<'_>, triangle: u32) -> AreaPdf {
+    let cdf = scene.emitter_cdf;
+    let Ok(i) = scene.emitter_triangles.binary_search(&triangle) else {
+        return AreaPdf(0.0);
+    };
+    let total = cdf[cdf.len() - 1];
+    let prob = (cdf[i] - if i > 0 { cdf[i - 1] } else { 0.0 }) / total;
+    let [p0, p1, p2] = scene.triangle_vertices(triangle);
+    let area = 0.5 * (p1 - p0).cross(p2 - p0).length();
+    if area > 0.0 && prob > 0.0 {
+        AreaPdf(prob / area)
+    } else {
+        AreaPdf(0.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

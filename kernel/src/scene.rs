@@ -25,7 +25,8 @@ impl Material {
 
 /// All scene data, borrowed from the host. Vertex attributes share one index per corner.
 ///
-/// Emitter sampling reads `emitter_triangles` (indices of emissive triangles) and
+/// Emitter sampling reads `emitter_triangles` (indices of emissive triangles, sorted ascending
+/// so that the pdf of a hit emitter is found by binary search) and
 /// `emitter_cdf` (non-decreasing cumulative selection probabilities, one per entry, the last
 /// one the total). The host chooses the weights; TinyRender's rule is "an emitter uniformly,
 /// then a triangle of it in proportion to area".
@@ -51,6 +52,8 @@ pub enum SceneError {
     MaterialIndex { triangle: usize, index: u32 },
     EmitterCount { triangles: usize, cdf: usize },
     EmitterIndex { entry: usize, index: u32 },
+    EmitterOrder { entry: usize },
+    EmitterCdf { entry: usize },
     BvhPrimitive { entry: usize, index: u32 },
 }
 
@@ -77,6 +80,18 @@ impl core::fmt::Display for SceneError {
                 write!(
                     f,
                     "emitter entry {entry} refers to missing triangle {index}"
+                )
+            }
+            Self::EmitterOrder { entry } => {
+                write!(
+                    f,
+                    "emitter triangles are not sorted ascending at entry {entry}"
+                )
+            }
+            Self::EmitterCdf { entry } => {
+                write!(
+                    f,
+                    "emitter cdf is not finite and non-decreasing at entry {entry}"
                 )
             }
             Self::BvhPrimitive { entry, index } => {
@@ -164,6 +179,13 @@ impl<'a> SceneView<'a> {
         for (i, &t) in self.emitter_triangles.iter().enumerate() {
             if t as usize >= self.triangles.len() {
                 return Err(SceneError::EmitterIndex { entry: i, index: t });
+            }
+            if i > 0 && self.emitter_triangles[i - 1] >= t {
+                return Err(SceneError::EmitterOrder { entry: i });
+            }
+            let c = self.emitter_cdf[i];
+            if !c.is_finite() || c < 0.0 || (i > 0 && self.emitter_cdf[i - 1] > c) {
+                return Err(SceneError::EmitterCdf { entry: i });
             }
         }
         for (i, &t) in self.bvh.prim_order.iter().enumerate() {

@@ -75,7 +75,12 @@ const CASES: &[(&str, &str, u32)] = &[
         "cbox_path_explicit_rr_REF.exr",
         32,
     ),
+    // ember's MIS path tracer (not a TinyRender integrator) on the same scene and reference.
+    (MIS_RR, "cbox_path_explicit_rr_REF.exr", 32),
 ];
+
+/// Pseudo-name: the `_rr` scene rendered with `Integrator::PathMis`.
+const MIS_RR: &str = "cbox_path_explicit_rr.toml#mis";
 
 /// Same-depth pairs (explicit, implicit).
 const PAIRS: &[(&str, &str)] = &[
@@ -115,8 +120,24 @@ fn rendered(toml: &'static str) -> std::sync::Arc<Rendered> {
     let spp = CASES.iter().find(|c| c.0 == toml).unwrap().2 * spp_scale();
     // A seed per scene keeps the implicit and explicit renders independent (the same seed
     // would correlate their camera samples and shrink their differences below the noise).
-    let seed = ember_kernel::sampler::mix64(toml.bytes().fold(0u64, |h, b| h * 31 + u64::from(b)));
-    let r = std::sync::Arc::new(render_scene_with(&cbox_scene(toml), W, H, spp, seed, 16, 0));
+    let seed = ember_kernel::sampler::mix64(
+        toml.bytes()
+            .fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(u64::from(b))),
+    );
+    let (file, integrator) = match toml.split_once('#') {
+        Some((file, "mis")) => (file, Some(ember_kernel::integrator::Integrator::PathMis)),
+        _ => (toml, None),
+    };
+    let r = std::sync::Arc::new(render_scene_full(
+        &cbox_scene(file),
+        integrator,
+        W,
+        H,
+        spp,
+        seed,
+        16,
+        0,
+    ));
     assert_eq!(r.image.non_finite_count(), 0, "{toml}: non-finite pixels");
     assert_eq!(r.invalid_samples, 0, "{toml}: invalid samples");
     cache.lock().unwrap().insert(toml, r.clone());

@@ -1,7 +1,7 @@
+use super::direct::sample_direct;
 use super::PathSettings;
 use crate::bsdf::{Bsdf, TransportMode};
-use crate::emitter::sample_emitter;
-use crate::geometry::{spawn_ray_to, Ray};
+use crate::geometry::Ray;
 use crate::sampler::Sampler;
 use crate::scene::{SceneView, SurfaceInteraction};
 use crate::Rgb;
@@ -49,7 +49,9 @@ pub fn li_explicit_from_surface<S: Sampler>(
         let u_rr = sampler.next_1d();
 
         if bsdf.flags().is_non_specular() {
-            l += beta * direct_light(scene, &si, &bsdf, u_select, u_light);
+            if let Some(d) = sample_direct(scene, &si, &bsdf, u_select, u_light) {
+                l += beta * d.contribution;
+            }
         }
         // The next vertex only matters if its direct lighting is within the depth limit.
         if !settings.allows(bounces + 1) {
@@ -70,44 +72,4 @@ pub fn li_explicit_from_surface<S: Sampler>(
         bsdf = scene.material(si.material).bsdf;
     }
     l
-}
-
-/// One-sample estimate of the radiance reflected at `si` from light arriving directly from
-/// the emitters: `f · cosθᵢ · Le / p_ω`, zero when the emitter point is occluded, faces away, or
-/// lies below the shading hemisphere.
-#[inline]
-fn direct_light(
-    scene: &SceneView<'_>,
-    si: &SurfaceInteraction,
-    bsdf: &Bsdf,
-    u_select: f32,
-    u_light: glam::Vec2,
-) -> Rgb {
-    let Some(es) = sample_emitter(scene, u_select, u_light) else {
-        return Rgb::ZERO;
-    };
-    let to_light = es.p - si.p;
-    let dist2 = to_light.length_squared();
-    if dist2.is_nan() || dist2 <= 0.0 {
-        return Rgb::ZERO;
-    }
-    let wi_world = to_light / crate::math::sqrt(dist2);
-    let cos_light = es.n.dot(-wi_world);
-    if cos_light <= 0.0 {
-        return Rgb::ZERO;
-    }
-    let wi = si.frame.to_local(wi_world);
-    if wi.z <= 0.0 {
-        return Rgb::ZERO;
-    }
-    let f = bsdf.eval(si.wo, wi, TransportMode::Radiance);
-    if f == Rgb::ZERO {
-        return Rgb::ZERO;
-    }
-    let shadow = spawn_ray_to(si.p, si.p_err, si.ng, es.p, es.p_err, es.ng);
-    if scene.occluded(&shadow) {
-        return Rgb::ZERO;
-    }
-    let pdf = es.pdf.to_solid_angle(dist2, cos_light);
-    f * es.radiance * (wi.z / pdf.0)
 }

@@ -11,12 +11,16 @@
 //! rendered exactly, without roulette.
 
 mod bake;
+mod direct;
 mod explicit;
 mod implicit;
+mod mis;
 
 pub use bake::{bake_vertex, BakePoint};
+pub use direct::{sample_direct, DirectSample};
 pub use explicit::{li_explicit, li_explicit_from_surface};
 pub use implicit::li_implicit;
+pub use mis::{li_mis, li_mis_from_surface, power_heuristic};
 
 use crate::camera::Camera;
 use crate::geometry::Ray;
@@ -38,6 +42,9 @@ pub enum Integrator {
     /// Next-event estimation at every vertex plus BSDF-sampled continuation; emission counted
     /// only at the camera vertex.
     PathExplicit,
+    /// Emitter and BSDF sampling of direct light at every vertex, combined by multiple
+    /// importance sampling (power heuristic). Not a TinyRender integrator: ember's best.
+    PathMis,
 }
 
 /// Path length and termination settings.
@@ -104,6 +111,7 @@ pub fn li<S: Sampler>(
     match integrator {
         Integrator::PathImplicit => li_implicit(scene, ray, settings, sampler),
         Integrator::PathExplicit => li_explicit(scene, ray, settings, sampler),
+        Integrator::PathMis => li_mis(scene, ray, settings, sampler),
     }
 }
 

@@ -5,6 +5,7 @@
 use ember_cli::image::Image;
 use ember_cli::render::{render, RenderSettings, Rendered};
 use ember_cli::LoadedScene;
+use ember_kernel::integrator::Integrator;
 use ember_kernel::sampler::DEFAULT_SEED;
 use ember_kernel::Rgb;
 use std::path::{Path, PathBuf};
@@ -48,8 +49,23 @@ pub fn render_scene_with(
     tile: u32,
     threads: usize,
 ) -> Rendered {
+    render_scene_full(toml, None, width, height, spp, seed, tile, threads)
+}
+
+/// Renders with an integrator other than the scene's (`None`: the scene's).
+pub fn render_scene_full(
+    toml: &Path,
+    integrator: Option<Integrator>,
+    width: u32,
+    height: u32,
+    spp: u32,
+    seed: u64,
+    tile: u32,
+    threads: usize,
+) -> Rendered {
     let scene = LoadedScene::load(toml).unwrap_or_else(|e| panic!("{e}"));
-    let (integrator, path, _) = scene.path_settings().unwrap();
+    let (scene_integrator, path, _) = scene.path_settings().unwrap();
+    let integrator = integrator.unwrap_or(scene_integrator);
     let camera = scene.camera(width, height);
     render(
         &scene.data.view(),

@@ -1,0 +1,349 @@
+//! Baking per-vertex global illumination (TinyRender's `gi` pass, FORMAT.md §6) and storing it
+//! as PLY.
+//!
+//! Vertices that share position, normal and material have the same expected radiance, so each
+//! such key is baked once: TinyRender bakes every face corner (3 per triangle); the count of
+//! paths this saves is reported.
+//!
+//! The bake is written as binary little-endian PLY with float `red green blue` vertex
+//! properties: PLY is read by MeshLab, Blender, Open3D and most geometry tools, stores float
+//! colours (HDR radiance, not 8-bit), and is simple enough to read back without a dependency.
+//! (glTF would need a JSON writer and a buffer layout for the same result.)
+
+use crate::error::{Error, Result};
+use crate::LoadedScene;
+use ember_kernel::integrator::{bake_vertex, BakePoint, PathSettings};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// A mesh with one baked linear RGB radiance per vertex, ready to rasterise.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BakedMesh {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub colors: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// What produced the colours (`key value` pairs stored as PLY comments), used to decide
+    /// whether a stored bake can be reused.
+    pub provenance: Vec<(String, String)>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakeSettings {
+    pub path: PathSettings,
+    pub samples_per_vertex: u32,
+    pub seed: u64,
+    /// Worker threads; 0 means one per core. Does not change the result.
+    pub threads: usize,
+    pub progress: bool,
+}
+
+/// Counts of a bake, for reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BakeReport {
+    /// Face corners (3 per triangle): what TinyRender bakes.
+    pub face_corners: usize,
+    /// Distinct (position, normal, material) keys actually baked.
+    pub unique_keys: usize,
+    pub paths_traced: u64,
+    /// Paths a per-corner bake would have traced in addition.
+    pub paths_saved: u64,
+    pub seconds: f64,
+}
+
+/// Fraction of the way from a vertex to an adjacent triangle's centroid where it is baked.
+pub const BAKE_INSET: f32 = 1e-3;
+
+/// Bit pattern key of a vertex: equal keys have equal expected radiance.
+type VertexKey = ([u32; 3], [u32; 3], u32);
+
+/// Bakes every vertex of the scene.
+///
+/// # Errors
+/// When the thread pool cannot be created.
+pub fn bake(scene: &LoadedScene, s: &BakeSettings) -> Result<(BakedMesh, BakeReport)> {
+    let start = std::time::Instant::now();
+    let data = &scene.data;
+    let view = data.view();
+    // Material of each vertex: vertices belong to exactly one object.
+    let mut vertex_material = vec![0u32; data.positions.len()];
+    for o in &data.objects {
+        for v in o.vertices.clone() {
+            vertex_material[v as usize] = o.material;
+        }
+    }
+    // A triangle using each vertex, to step the bake point into the surface (below).
+    let mut vertex_triangle = vec![u32::MAX; data.positions.len()];
+    for (t, tri) in data.triangles.iter().enumerate() {
+        for &v in tri {
+            if vertex_triangle[v as usize] == u32::MAX {
+                vertex_triangle[v as usize] = t as u32;
+            }
+        }
+    }
+    let mut keys: HashMap<VertexKey, u32> = HashMap::new();
+    let mut points: Vec<BakePoint> = Vec::new();
+    let vertex_key: Vec<u32> = (0..data.positions.len())
+        .map(|v| {
+            let (p, n, m) = (data.positions[v], data.normals[v], vertex_material[v]);
+            let key = (
+                p.to_array().map(f32::to_bits),
+                n.to_array().map(f32::to_bits),
+                m,
+            );
+            *keys.entry(key).or_insert_with(|| {
+                // A vertex on the edge where two surfaces meet (a room corner) lies in both
+                // planes, and half of its hemisphere would start exactly on the other surface
+                // and leave the room. Gouraud shading shows the limit of the radiance from
+                // inside the triangles, so bake a point a thousandth of the way toward the
+                // centroid of one of them: inside the surface, off the neighbouring plane.
+                let p = match vertex_triangle[v] {
+                    u32::MAX => p,
+                    t => {
+                        let c = view.triangle_vertices(t).iter().sum::<glam::Vec3>() / 3.0;
+                        p + (c - p) * BAKE_INSET
+                    }
+                };
+                points.push(BakePoint { p, n, material: m });
+                (points.len() - 1) as u32
+            })
+        })
+        .collect();
+
+    let bar = if s.progress {
+        let b = ProgressBar::new(points.len() as u64);
+        b.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} vertices, ETA {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(s.threads)
+        .build()
+        .map_err(|e| Error::new(format!("cannot create worker threads: {e}")))?;
+    let radiance: Vec<[f32; 3]> = pool.install(|| {
+        points
+            .par_iter()
+            .enumerate()
+            .map(|(k, point)| {
+                let l = bake_vertex(
+                    &view,
+                    point,
+                    &s.path,
+                    s.seed,
+                    k as u64,
+                    s.samples_per_vertex,
+                );
+                if k % 64 == 0 {
+                    bar.inc(64);
+                }
+                l.to_array()
+            })
+            .collect()
+    });
+    bar.finish_and_clear();
+
+    let spv = u64::from(s.samples_per_vertex);
+    let report = BakeReport {
+        face_corners: 3 * data.triangles.len(),
+        unique_keys: points.len(),
+        paths_traced: points.len() as u64 * spv,
+        paths_saved: (3 * data.triangles.len() as u64).saturating_sub(points.len() as u64) * spv,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    let mesh = BakedMesh {
+        positions: data.positions.iter().map(|p| p.to_array()).collect(),
+        normals: data.normals.iter().map(|n| n.to_array()).collect(),
+        colors: vertex_key.iter().map(|&k| radiance[k as usize]).collect(),
+        triangles: data.triangles.clone(),
+        provenance: provenance(scene, s),
+    };
+    Ok((mesh, report))
+}
+
+/// The settings a bake depends on, as stored in the PLY header.
+#[must_use]
+pub fn provenance(scene: &LoadedScene, s: &BakeSettings) -> Vec<(String, String)> {
+    vec![
+        ("scene".into(), scene.file.path.display().to_string()),
+        (
+            "samples_per_vertex".into(),
+            s.samples_per_vertex.to_string(),
+        ),
+        ("seed".into(), s.seed.to_string()),
+        ("max_depth".into(), s.path.max_depth.to_string()),
+        ("rr_depth".into(), s.path.rr_depth.to_string()),
+        ("rr_prob".into(), s.path.rr_prob.to_string()),
+        ("kernel".into(), env!("CARGO_PKG_VERSION").into()),
+    ]
+}
+
+/// Where a scene's bake is stored by default: `<toml stem>.bake.ply` beside the TOML.
+#[must_use]
+pub fn default_bake_path(toml: &Path) -> PathBuf {
+    toml.with_extension("bake.ply")
+}
+
+fn modified(p: &Path) -> Option<std::time::SystemTime> {
+    std::fs::metadata(p).and_then(|m| m.modified()).ok()
+}
+
+/// Reads the bake at `path` when it is newer than the scene's TOML, OBJ and MTL files and was
+/// made with the same settings; otherwise bakes and stores it there (a store that fails, e.g.
+/// in a read-only folder, is reported as a warning and the bake is still returned).
+///
+/// # Errors
+/// When baking fails.
+pub fn load_or_bake(
+    scene: &LoadedScene,
+    path: &Path,
+    s: &BakeSettings,
+) -> Result<(BakedMesh, Option<BakeReport>)> {
+    let inputs = [&scene.file.path, &scene.file.objfile];
+    let newest_input = inputs
+        .iter()
+        .filter_map(|p| modified(p))
+        .chain(scene.data.mtl_files.iter().filter_map(|p| modified(p)))
+        .max();
+    if let (Some(bake_time), Some(input_time)) = (modified(path), newest_input) {
+        if bake_time > input_time {
+            if let Ok(mesh) = read_ply(path) {
+                if mesh.provenance == provenance(scene, s)
+                    && mesh.positions.len() == scene.data.positions.len()
+                {
+                    return Ok((mesh, None));
+                }
+            }
+        }
+    }
+    let (mesh, report) = bake(scene, s)?;
+    if let Err(e) = write_ply(path, &mesh) {
+        eprintln!("warning: the bake was not stored: {e}");
+    }
+    Ok((mesh, Some(report)))
+}
+
+/// Writes binary little-endian PLY: vertices with `x y z nx ny nz red green blue` floats, faces
+/// as `uchar`-counted `uint` index lists. Written atomically.
+///
+/// # Errors
+/// When the file cannot be written.
+pub fn write_ply(path: &Path, m: &BakedMesh) -> Result<()> {
+    let io = |e: std::io::Error| Error::in_file(path, format!("cannot write PLY: {e}"));
+    crate::image::write_atomically(path, |tmp| {
+        let file = std::fs::File::create(tmp).map_err(io)?;
+        let mut w = BufWriter::new(&file);
+        let mut header = String::from("ply\nformat binary_little_endian 1.0\n");
+        header
+            .push_str("comment ember baked global illumination: linear RGB radiance per vertex\n");
+        for (k, v) in &m.provenance {
+            header.push_str(&format!("comment {k} {v}\n"));
+        }
+        header.push_str(&format!("element vertex {}\n", m.positions.len()));
+        for p in ["x", "y", "z", "nx", "ny", "nz", "red", "green", "blue"] {
+            header.push_str(&format!("property float {p}\n"));
+        }
+        header.push_str(&format!("element face {}\n", m.triangles.len()));
+        header.push_str("property list uchar uint vertex_indices\nend_header\n");
+        w.write_all(header.as_bytes()).map_err(io)?;
+        for i in 0..m.positions.len() {
+            for v in m.positions[i]
+                .iter()
+                .chain(&m.normals[i])
+                .chain(&m.colors[i])
+            {
+                w.write_all(&v.to_le_bytes()).map_err(io)?;
+            }
+        }
+        for t in &m.triangles {
+            w.write_all(&[3u8]).map_err(io)?;
+            for i in t {
+                w.write_all(&i.to_le_bytes()).map_err(io)?;
+            }
+        }
+        w.flush().map_err(io)?;
+        drop(w);
+        file.sync_all().map_err(io)
+    })
+}
+
+/// Reads a PLY written by [`write_ply`].
+///
+/// # Errors
+/// When the file is missing or not in that layout.
+pub fn read_ply(path: &Path) -> Result<BakedMesh> {
+    let bad = |msg: &str| Error::in_file(path, format!("not an ember bake PLY: {msg}"));
+    let file = std::fs::File::open(path)
+        .map_err(|e| Error::in_file(path, format!("cannot read PLY: {e}")))?;
+    let mut r = BufReader::new(file);
+    let mut line = String::new();
+    let mut mesh = BakedMesh::default();
+    let (mut nv, mut nf) = (None, None);
+    let mut props = Vec::new();
+    loop {
+        line.clear();
+        if r.read_line(&mut line).map_err(|e| bad(&e.to_string()))? == 0 {
+            return Err(bad("no end_header"));
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["end_header"] => break,
+            ["comment", k, rest @ ..] if !rest.is_empty() => {
+                mesh.provenance.push(((*k).to_string(), rest.join(" ")));
+            }
+            ["element", "vertex", n] => nv = n.parse::<usize>().ok(),
+            ["element", "face", n] => nf = n.parse::<usize>().ok(),
+            ["property", "float", name] => props.push((*name).to_string()),
+            ["format", f, _] if *f != "binary_little_endian" => return Err(bad("format")),
+            _ => {}
+        }
+    }
+    mesh.provenance.retain(|(k, _)| k != "ember");
+    let expected = ["x", "y", "z", "nx", "ny", "nz", "red", "green", "blue"];
+    if props != expected {
+        return Err(bad("vertex properties"));
+    }
+    let (nv, nf) = (
+        nv.ok_or_else(|| bad("vertex count"))?,
+        nf.ok_or_else(|| bad("face count"))?,
+    );
+    let mut buf = [0u8; 4];
+    let mut f32s = |r: &mut BufReader<std::fs::File>| -> Result<[f32; 3]> {
+        let mut v = [0.0f32; 3];
+        for x in &mut v {
+            r.read_exact(&mut buf).map_err(|_| bad("truncated"))?;
+            *x = f32::from_le_bytes(buf);
+        }
+        Ok(v)
+    };
+    for _ in 0..nv {
+        mesh.positions.push(f32s(&mut r)?);
+        mesh.normals.push(f32s(&mut r)?);
+        mesh.colors.push(f32s(&mut r)?);
+    }
+    for _ in 0..nf {
+        let mut n = [0u8; 1];
+        r.read_exact(&mut n).map_err(|_| bad("truncated"))?;
+        if n[0] != 3 {
+            return Err(bad("non-triangle face"));
+        }
+        let mut t = [0u32; 3];
+        for i in &mut t {
+            r.read_exact(&mut buf).map_err(|_| bad("truncated"))?;
+            *i = u32::from_le_bytes(buf);
+            if *i as usize >= nv {
+                return Err(bad("face index out of range"));
+            }
+        }
+        mesh.triangles.push(t);
+    }
+    Ok(mesh)
+}

@@ -1,0 +1,61 @@
+//! Next-event estimation: direct light from a point sampled on the emitters.
+
+use crate::bsdf::{Bsdf, TransportMode};
+use crate::emitter::sample_emitter;
+use crate::geometry::spawn_ray_to;
+use crate::math::SolidAnglePdf;
+use crate::scene::{SceneView, SurfaceInteraction};
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+
+/// An unoccluded emitter sample seen from a surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectSample {
+    /// `f · cosθᵢ · Le / p_ω`: the one-sample estimate of direct reflected radiance.
+    pub contribution: Rgb,
+    /// Direction to the light in the shading frame.
+    pub wi: Vec3,
+    /// Density of `wi` under emitter sampling, per unit solid angle.
+    pub pdf: SolidAnglePdf,
+}
+
+/// Samples a point on the emitters and returns its unweighted contribution, or `None` when the
+/// point is occluded, faces away, lies below the shading hemisphere or the BSDF is zero there.
+#[inline]
+pub fn sample_direct(
+    scene: &SceneView<'_>,
+    si: &SurfaceInteraction,
+    bsdf: &Bsdf,
+    u_select: f32,
+    u_light: Vec2,
+) -> Option<DirectSample> {
+    let es = sample_emitter(scene, u_select, u_light)?;
+    let to_light = es.p - si.p;
+    let dist2 = to_light.length_squared();
+    if dist2.is_nan() || dist2 <= 0.0 {
+        return None;
+    }
+    let wi_world = to_light / crate::math::sqrt(dist2);
+    let cos_light = es.n.dot(-wi_world);
+    if cos_light <= 0.0 {
+        return None;
+    }
+    let wi = si.frame.to_local(wi_world);
+    if wi.z <= 0.0 {
+        return None;
+    }
+    let f = bsdf.eval(si.wo, wi, TransportMode::Radiance);
+    if f == Rgb::ZERO {
+        return None;
+    }
+    let shadow = spawn_ray_to(si.p, si.p_err, si.ng, es.p, es.p_err, es.ng);
+    if scene.occluded(&shadow) {
+        return None;
+    }
+    let pdf = es.pdf.to_solid_angle(dist2, cos_light);
+    Some(DirectSample {
+        contribution: f * es.radiance * (wi.z / pdf.0),
+        wi,
+        pdf,
+    })
+}
