@@ -3,13 +3,14 @@
 use clap::{Parser, Subcommand};
 use ember_cli::bake::{bake, default_bake_path, write_ply, BakeSettings};
 use ember_cli::image::{write_exr, write_png};
-use ember_cli::render::{render, RenderSettings};
+use ember_cli::render::{render_interruptible, render_memory, RenderSettings};
 use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
 use ember_cli::{Error, LoadedScene, Result};
 use ember_kernel::integrator::Integrator;
 use ember_kernel::sampler::DEFAULT_SEED;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(Parser)]
 #[command(
@@ -102,7 +103,17 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+    /// Refuse renders whose image buffers would need more than this many GiB.
+    #[arg(long, default_value_t = 16.0)]
+    max_memory_gib: f64,
 }
+
+/// Renders asking for more samples than this (width × height × spp) are refused as typos:
+/// 10¹³ samples is weeks of work on a workstation.
+const MAX_TOTAL_SAMPLES: u64 = 10_000_000_000_000;
+
+/// Set by Ctrl-C; the renderer stops at the next tile and keeps the passes completed.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// More worker threads than this is a typo, not a machine.
 const MAX_THREADS: usize = 4096;
@@ -159,6 +170,26 @@ fn run_render(a: &RenderArgs) -> Result<()> {
             format!("output directory {} does not exist", out_dir.display()),
         ));
     }
+    let samples = u64::from(width) * u64::from(height) * u64::from(spp);
+    if samples > MAX_TOTAL_SAMPLES {
+        return Err(Error::in_file(
+            &a.scene,
+            format!(
+                "{width}x{height} pixels x {spp} spp = {samples} samples is more than the limit of {MAX_TOTAL_SAMPLES}"
+            ),
+        ));
+    }
+    let memory = render_memory(width, height);
+    if memory as f64 > a.max_memory_gib * f64::from(1u32 << 30) {
+        return Err(Error::in_file(
+            &a.scene,
+            format!(
+                "a {width}x{height} render needs {:.1} GiB of image buffers, more than --max-memory-gib {}",
+                memory as f64 / f64::from(1u32 << 30),
+                a.max_memory_gib
+            ),
+        ));
+    }
     let camera = scene.camera(width, height);
     let settings = RenderSettings {
         integrator,
@@ -181,14 +212,33 @@ fn run_render(a: &RenderArgs) -> Result<()> {
             path.max_depth
         );
     }
-    let r = render(&view, &camera, &settings);
+    // Ctrl-C stops the render at the next tile; the completed passes are still written. A
+    // handler that cannot be installed (e.g. one is already set) only loses that feature.
+    let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::Relaxed));
+    let r = render_interruptible(&view, &camera, &settings, &INTERRUPTED);
+    if r.spp < spp {
+        if r.spp == 0 {
+            eprintln!("ember: interrupted before the first pass finished; nothing written");
+            std::process::exit(130);
+        }
+        // The partial image is named by its sample count, never mistaken for the full render.
+        let stem = out.file_stem().unwrap_or_default().to_string_lossy();
+        let partial = out.with_file_name(format!("{stem}_partial_{}spp.exr", r.spp));
+        write_exr(&partial, &r.image)?;
+        write_png(&partial.with_extension("png"), &r.image)?;
+        eprintln!(
+            "ember: interrupted after {} of {spp} spp; wrote {}",
+            r.spp,
+            partial.display()
+        );
+        std::process::exit(130);
+    }
     write_exr(&out, &r.image)?;
     if let Err(e) = write_png(&png, &r.image) {
         // Leave no half of the output behind.
         let _ = std::fs::remove_file(&out);
         return Err(e);
     }
-    let samples = u64::from(width) * u64::from(height) * u64::from(spp);
     let mean = r.image.mean();
     eprintln!(
         "ember: {:.2} s, {:.2} M samples/s, mean RGB ({:.5}, {:.5}, {:.5}), {} invalid samples",

@@ -1,4 +1,5 @@
-//! Parallel rendering on the host: rayon over tiles, the kernel per pixel.
+//! Parallel rendering on the host: rayon over tiles, the kernel per pixel, in passes of
+//! samples so that a render can be interrupted and still yield an image.
 
 use crate::image::Image;
 use ember_kernel::camera::Camera;
@@ -7,6 +8,7 @@ use ember_kernel::scene::SceneView;
 use ember_kernel::Rgb;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Everything that determines an image besides the scene and the camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -29,18 +31,53 @@ pub struct Rendered {
     pub image: Image,
     /// Estimated variance of each pixel's mean (sample variance / spp).
     pub variance: Image,
+    /// Samples per pixel actually in the image (fewer than asked if interrupted).
+    pub spp: u32,
     /// Samples that were NaN or infinite (counted as 0).
     pub invalid_samples: u64,
     pub seconds: f64,
 }
 
+/// Bytes the host allocates per pixel: running sums (`PixelStats`), one pass's results, and the
+/// mean and variance images.
+pub const BYTES_PER_PIXEL: u64 = 2 * std::mem::size_of::<PixelStats>() as u64 + 2 * 12;
+
+/// Memory a render of `width × height` needs, in bytes.
+#[must_use]
+pub fn render_memory(width: u32, height: u32) -> u64 {
+    u64::from(width) * u64::from(height) * BYTES_PER_PIXEL
+}
+
 /// Renders the scene. The result depends only on the scene, camera, integrator settings, spp
-/// and seed: every pixel sums its samples in sample order, whatever the tiling or threads.
+/// and seed: every pixel sums its samples in sample order, whatever the tiling, threads or
+/// passes.
 ///
 /// # Panics
 /// If the rayon thread pool cannot be created.
 #[must_use]
 pub fn render(scene: &SceneView<'_>, camera: &Camera, s: &RenderSettings) -> Rendered {
+    render_interruptible(scene, camera, s, &AtomicBool::new(false))
+}
+
+/// Samples per pixel in each pass: about 16 passes, so an interrupt loses at most ~1/16 of the
+/// work, and at least 1 sample.
+fn pass_size(spp: u32) -> u32 {
+    spp.div_ceil(16).max(1)
+}
+
+/// Like [`render`], but checks `stop` between tiles: once it is set, the pass in flight is
+/// abandoned and the image holds the passes completed so far (`Rendered::spp` says how many
+/// samples; 0 if not even one pass finished).
+///
+/// # Panics
+/// If the rayon thread pool cannot be created.
+#[must_use]
+pub fn render_interruptible(
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    s: &RenderSettings,
+    stop: &AtomicBool,
+) -> Rendered {
     let start = std::time::Instant::now();
     let (w, h) = (camera.width, camera.height);
     let tile = s.tile.max(1);
@@ -48,10 +85,10 @@ pub fn render(scene: &SceneView<'_>, camera: &Camera, s: &RenderSettings) -> Ren
         .flat_map(|ty| (0..w.div_ceil(tile)).map(move |tx| (tx * tile, ty * tile)))
         .collect();
     let bar = if s.progress {
-        let b = ProgressBar::new(tiles.len() as u64);
+        let b = ProgressBar::new(u64::from(w) * u64::from(h) * u64::from(s.spp));
         b.set_style(
             ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles, ETA {eta}",
+                "{spinner} [{elapsed_precise}] {wide_bar} {percent}% of samples, ETA {eta}",
             )
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
@@ -63,50 +100,73 @@ pub fn render(scene: &SceneView<'_>, camera: &Camera, s: &RenderSettings) -> Ren
         .num_threads(s.threads)
         .build()
         .expect("cannot create the rayon thread pool");
-    let results: Vec<((u32, u32), Vec<PixelStats>)> = pool.install(|| {
-        tiles
-            .par_iter()
-            .map(|&(x0, y0)| {
-                let mut out = Vec::with_capacity((tile * tile) as usize);
-                for y in y0..(y0 + tile).min(h) {
-                    for x in x0..(x0 + tile).min(w) {
-                        out.push(render_pixel(
-                            s.integrator,
-                            scene,
-                            camera,
-                            &s.path,
-                            s.seed,
-                            x,
-                            y,
-                            0,
-                            s.spp,
-                        ));
+    // Running sums in tile order: tile i owns the slice starting at its first pixel index.
+    let tile_pixels = |(x0, y0): (u32, u32)| ((x0 + tile).min(w) - x0) * ((y0 + tile).min(h) - y0);
+    let mut sums: Vec<Vec<PixelStats>> = tiles
+        .iter()
+        .map(|&t| vec![PixelStats::default(); tile_pixels(t) as usize])
+        .collect();
+    let mut done = 0u32;
+    while done < s.spp && !stop.load(Ordering::Relaxed) {
+        let count = pass_size(s.spp).min(s.spp - done);
+        let pass: Option<Vec<Vec<PixelStats>>> = pool.install(|| {
+            tiles
+                .par_iter()
+                .zip(sums.par_iter())
+                .map(|(&(x0, y0), acc)| {
+                    if stop.load(Ordering::Relaxed) {
+                        return None;
                     }
-                }
-                bar.inc(1);
-                ((x0, y0), out)
-            })
-            .collect()
-    });
+                    let mut out = Vec::with_capacity(acc.len());
+                    let mut k = 0;
+                    for y in y0..(y0 + tile).min(h) {
+                        for x in x0..(x0 + tile).min(w) {
+                            out.push(render_pixel(
+                                s.integrator,
+                                scene,
+                                camera,
+                                &s.path,
+                                s.seed,
+                                x,
+                                y,
+                                done,
+                                count,
+                                acc[k],
+                            ));
+                            k += 1;
+                        }
+                    }
+                    bar.inc(u64::from(count) * out.len() as u64);
+                    Some(out)
+                })
+                .collect()
+        });
+        // An interrupted pass is dropped whole: every pixel keeps the same sample count.
+        let Some(pass) = pass else { break };
+        sums = pass;
+        done += count;
+    }
     bar.finish_and_clear();
+
     let mut image = Image::new(w, h);
     let mut variance = Image::new(w, h);
     let mut invalid = 0u64;
-    let n = s.spp as f32;
-    for ((x0, y0), stats) in results {
-        let mut it = stats.into_iter();
+    let n = done as f32;
+    for (&(x0, y0), stats) in tiles.iter().zip(&sums) {
+        let mut it = stats.iter();
         for y in y0..(y0 + tile).min(h) {
             for x in x0..(x0 + tile).min(w) {
                 let Some(p) = it.next() else { continue };
-                let mean = p.sum / n;
-                let var = if s.spp > 1 {
-                    ((p.sum_sq - p.sum * mean) / (n - 1.0)).max(Rgb::ZERO) / n
-                } else {
-                    Rgb::ZERO
-                };
                 let i = (y * w + x) as usize;
-                image.pixels[i] = mean;
-                variance.pixels[i] = var;
+                if done > 0 {
+                    let mean = p.sum / n;
+                    image.pixels[i] = mean;
+                    variance.pixels[i] = if done > 1 {
+                        ((p.sum_sq - p.sum * mean) / (n - 1.0)).max(Rgb::ZERO) / n
+                    } else {
+                        Rgb::ZERO
+                    };
+                }
                 invalid += u64::from(p.invalid);
             }
         }
@@ -114,6 +174,7 @@ pub fn render(scene: &SceneView<'_>, camera: &Camera, s: &RenderSettings) -> Ren
     Rendered {
         image,
         variance,
+        spp: done,
         invalid_samples: invalid,
         seconds: start.elapsed().as_secs_f64(),
     }

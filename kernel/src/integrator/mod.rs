@@ -124,9 +124,29 @@ pub struct PixelStats {
     pub invalid: u32,
 }
 
-/// Renders samples `first .. first + count` of pixel `(x, y)`. Sample `i` is keyed by
-/// `(seed, y·width + x, i)`, so any split of the samples, pixels or threads gives the same sums
-/// when they are added in sample order.
+impl PixelStats {
+    /// Adds one sample; a NaN or infinite one is counted in `invalid` instead (and in debug
+    /// builds that is reported loudly, since it means a bug in an estimator).
+    #[inline]
+    pub fn add(&mut self, l: Rgb) {
+        if crate::math::is_finite(l) {
+            self.sum += l;
+            self.sum_sq += l * l;
+        } else {
+            self.invalid += 1;
+        }
+        debug_assert!(
+            crate::math::is_finite(self.sum),
+            "non-finite value accumulated in a pixel"
+        );
+    }
+}
+
+/// Renders samples `first .. first + count` of pixel `(x, y)` and adds them, in sample order,
+/// to `stats`. Sample `i` is keyed by `(seed, y·width + x, i)`. Because each sample is added to
+/// the running sums in index order, rendering `0..n` in one call or in any sequence of
+/// consecutive ranges gives bit-identical sums: progressive and interrupted renders agree with
+/// one-shot renders, whatever the threads or tiles.
 #[must_use]
 pub fn render_pixel(
     integrator: Integrator,
@@ -138,19 +158,13 @@ pub fn render_pixel(
     y: u32,
     first: u32,
     count: u32,
+    mut stats: PixelStats,
 ) -> PixelStats {
     let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
-    let mut stats = PixelStats::default();
     for i in first..first + count {
         let mut sampler = IndependentSampler::new(seed, pixel, i);
         let ray = camera.generate_ray(x, y, sampler.next_2d());
-        let l = li(integrator, scene, &ray, settings, &mut sampler);
-        if crate::math::is_finite(l) {
-            stats.sum += l;
-            stats.sum_sq += l * l;
-        } else {
-            stats.invalid += 1;
-        }
+        stats.add(li(integrator, scene, &ray, settings, &mut sampler));
     }
     stats
 }
