@@ -167,6 +167,16 @@ pub fn linear_to_srgb(v: f32) -> f32 {
     }
 }
 
+/// The inverse of [`linear_to_srgb`] (the sRGB EOTF).
+#[must_use]
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
 /// Writes an 8-bit sRGB PNG preview (values clamped to [0, 1], no tone mapping).
 ///
 /// # Errors

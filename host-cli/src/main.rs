@@ -2,7 +2,8 @@
 
 use clap::{Parser, Subcommand};
 use ember_cli::bake::{bake, default_bake_path, write_ply, BakeSettings};
-use ember_cli::image::{write_exr, write_png};
+use ember_cli::compare::{compare, write_error_png};
+use ember_cli::image::{read_exr, write_exr, write_png};
 use ember_cli::render::{render_interruptible, render_memory, RenderSettings};
 use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
 use ember_cli::{Error, LoadedScene, Result};
@@ -30,6 +31,46 @@ enum Command {
     Render(RenderArgs),
     /// Bake per-vertex global illumination of a scene to a PLY file.
     Bake(BakeArgs),
+    /// Error metrics of an image against a reference (RMSE, relative MSE, bias).
+    Compare(CompareArgs),
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    /// The image to judge (EXR).
+    image: PathBuf,
+    /// The reference (EXR).
+    reference: PathBuf,
+    /// Also write a false-colour PNG of the per-pixel relative error.
+    #[arg(long)]
+    error_png: Option<PathBuf>,
+}
+
+fn run_compare(a: &CompareArgs) -> Result<()> {
+    let img = read_exr(&a.image)?;
+    let reference = read_exr(&a.reference)?;
+    let m = compare(&img, &reference).map_err(|e| Error::in_file(&a.image, e.message))?;
+    println!("image      {}", a.image.display());
+    println!("reference  {}", a.reference.display());
+    println!(
+        "mean       {:.6} {:.6} {:.6}  (reference {:.6} {:.6} {:.6})",
+        m.mean.x, m.mean.y, m.mean.z, m.reference_mean.x, m.reference_mean.y, m.reference_mean.z
+    );
+    println!(
+        "bias       {:+.6} ({:+.3}%)",
+        m.mean_bias,
+        100.0 * m.relative_bias
+    );
+    println!("rmse       {:.6}", m.rmse);
+    println!("rel_mse    {:.6}", m.rel_mse);
+    println!("mae        {:.6}", m.mae);
+    println!("max_abs    {:.6}", m.max_abs);
+    println!("non_finite {}", m.non_finite);
+    if let Some(p) = &a.error_png {
+        write_error_png(p, &img, &reference)?;
+        println!("error map  {}", p.display());
+    }
+    Ok(())
 }
 
 #[derive(clap::Args)]
@@ -346,6 +387,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Render(a) => run_render(a),
         Command::Bake(a) => run_bake(a),
+        Command::Compare(a) => run_compare(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
