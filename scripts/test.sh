@@ -14,6 +14,19 @@ if [ ! -d "$EMBER_TINYRENDER/data/a5/cbox/tinyrender" ]; then
     exit 1
 fi
 
+# A software GPU for the headless wgpu tests (Mesa's lavapipe Vulkan driver; EGL/llvmpipe as
+# a fallback). A missing adapter fails the viewer tests; it is never skipped.
+need=()
+for pkg in mesa-vulkan-drivers libegl1 libgl1-mesa-dri; do
+    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q 'install ok installed' || need+=("$pkg")
+done
+if [ ${#need[@]} -gt 0 ]; then
+    echo "== installing ${need[*]}"
+    if [ "$(id -u)" = 0 ]; then sudo=""; else sudo="sudo"; fi
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${need[@]}" >/dev/null
+fi
+
 # Rust components the checks use (present on the project's machines; installed if not).
 if command -v rustup >/dev/null 2>&1; then
     rustup component list --installed 2>/dev/null | grep -q '^rustfmt' || rustup component add rustfmt

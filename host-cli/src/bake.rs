@@ -39,6 +39,11 @@ pub struct BakeSettings {
     /// Worker threads; 0 means one per core. Does not change the result.
     pub threads: usize,
     pub progress: bool,
+    /// Where a vertex is baked: this fraction of the way toward the centroid of a triangle
+    /// using it. [`BAKE_INSET`] (the default) keeps vertices on room edges from losing half
+    /// of their hemisphere through the neighbouring wall (dark seams along every corner);
+    /// 0 reproduces TinyRender's bake, and its reference images, exactly.
+    pub vertex_inset: f32,
 }
 
 /// Counts of a bake, for reports.
@@ -54,7 +59,8 @@ pub struct BakeReport {
     pub seconds: f64,
 }
 
-/// Fraction of the way from a vertex to an adjacent triangle's centroid where it is baked.
+/// Default fraction of the way from a vertex to an adjacent triangle's centroid where it is
+/// baked (see [`BakeSettings::vertex_inset`]).
 pub const BAKE_INSET: f32 = 1e-3;
 
 /// Bit pattern key of a vertex: equal keys have equal expected radiance.
@@ -98,13 +104,14 @@ pub fn bake(scene: &LoadedScene, s: &BakeSettings) -> Result<(BakedMesh, BakeRep
                 // A vertex on the edge where two surfaces meet (a room corner) lies in both
                 // planes, and half of its hemisphere would start exactly on the other surface
                 // and leave the room. Gouraud shading shows the limit of the radiance from
-                // inside the triangles, so bake a point a thousandth of the way toward the
-                // centroid of one of them: inside the surface, off the neighbouring plane.
+                // inside the triangles, so by default bake a point a thousandth of the way
+                // toward the centroid of one of them: inside the surface, off the neighbouring
+                // plane. `vertex_inset = 0` bakes the vertex itself, as TinyRender does.
                 let p = match vertex_triangle[v] {
                     u32::MAX => p,
                     t => {
                         let c = view.triangle_vertices(t).iter().sum::<glam::Vec3>() / 3.0;
-                        p + (c - p) * BAKE_INSET
+                        p + (c - p) * s.vertex_inset
                     }
                 };
                 points.push(BakePoint { p, n, material: m });
@@ -182,7 +189,10 @@ pub fn provenance(scene: &LoadedScene, s: &BakeSettings) -> Vec<(String, String)
         ("max_depth".into(), s.path.max_depth.to_string()),
         ("rr_depth".into(), s.path.rr_depth.to_string()),
         ("rr_prob".into(), s.path.rr_prob.to_string()),
-        ("kernel".into(), env!("CARGO_PKG_VERSION").into()),
+        ("vertex_inset".into(), s.vertex_inset.to_string()),
+        // A hash of the kernel's and the baker's sources (build.rs): a bake made by other
+        // code is never reused.
+        ("code".into(), env!("EMBER_BAKE_CODE_HASH").into()),
     ]
 }
 

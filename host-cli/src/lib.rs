@@ -8,6 +8,7 @@ pub mod image;
 pub mod mesh;
 pub mod render;
 pub mod scene_file;
+pub mod shard;
 
 pub use error::{Error, Result};
 

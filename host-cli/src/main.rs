@@ -1,11 +1,12 @@
 //! `ember`: renders TinyRender scenes.
 
 use clap::{Parser, Subcommand};
-use ember_cli::bake::{bake, default_bake_path, write_ply, BakeSettings};
+use ember_cli::bake::{bake, default_bake_path, write_ply, BakeSettings, BAKE_INSET};
 use ember_cli::compare::{compare, write_error_png};
 use ember_cli::image::{read_exr, write_exr, write_png};
-use ember_cli::render::{render_interruptible, render_memory, RenderSettings};
+use ember_cli::render::{render_interruptible, render_memory, RenderSettings, Shard};
 use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
+use ember_cli::shard::{merge, read_partial, render_key, write_partial};
 use ember_cli::{Error, LoadedScene, Result};
 use ember_kernel::integrator::Integrator;
 use ember_kernel::sampler::DEFAULT_SEED;
@@ -33,6 +34,16 @@ enum Command {
     Bake(BakeArgs),
     /// Error metrics of an image against a reference (RMSE, relative MSE, bias).
     Compare(CompareArgs),
+    /// Convert an EXR to an sRGB PNG preview (values clamped to [0, 1]).
+    Convert {
+        /// Input EXR.
+        input: PathBuf,
+        /// Output PNG.
+        output: PathBuf,
+    },
+    /// Merge the partial EXRs of `ember render --shard I/N` into one image, bit-identical to
+    /// an unsharded render.
+    Merge(MergeArgs),
 }
 
 #[derive(clap::Args)]
@@ -93,6 +104,10 @@ struct BakeArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+    /// Bake each vertex this fraction of the way toward an adjacent triangle's centroid;
+    /// 0 bakes the vertex itself, as TinyRender does (see README).
+    #[arg(long, default_value_t = BAKE_INSET)]
+    vertex_inset: f32,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -147,6 +162,53 @@ struct RenderArgs {
     /// Refuse renders whose image buffers would need more than this many GiB.
     #[arg(long, default_value_t = 16.0)]
     max_memory_gib: f64,
+    /// Render only shard I of N (tiles t with t mod N = I) to a partial EXR with sample counts,
+    /// for `ember merge` (default output: `<stem>.shard-I-of-N.exr`).
+    #[arg(long, value_parser = parse_shard)]
+    shard: Option<Shard>,
+}
+
+fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
+    let (i, n) = s
+        .split_once('/')
+        .ok_or_else(|| format!("{s:?}: expected I/N, e.g. 0/4"))?;
+    let index: u32 = i.parse().map_err(|_| format!("{s:?}: I is not a number"))?;
+    let count: u32 = n.parse().map_err(|_| format!("{s:?}: N is not a number"))?;
+    if count == 0 || index >= count {
+        return Err(format!("{s:?}: need 0 <= I < N"));
+    }
+    Ok(Shard { index, count })
+}
+
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// Partial EXRs written by `ember render --shard I/N`, all N of them.
+    parts: Vec<PathBuf>,
+    /// The merged EXR (a PNG preview is written beside it).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+fn run_merge(a: &MergeArgs) -> Result<()> {
+    let parts = a
+        .parts
+        .iter()
+        .map(|p| read_partial(p).map(|part| (p.clone(), part)))
+        .collect::<Result<Vec<_>>>()?;
+    let image = merge(&parts)?;
+    write_exr(&a.output, &image)?;
+    let png = a.output.with_extension("png");
+    if let Err(e) = write_png(&png, &image) {
+        let _ = std::fs::remove_file(&a.output);
+        return Err(e);
+    }
+    eprintln!(
+        "ember: merged {} shards into {} and {}",
+        parts.len(),
+        a.output.display(),
+        png.display()
+    );
+    Ok(())
 }
 
 /// Renders asking for more samples than this (width × height × spp) are refused as typos:
@@ -190,10 +252,13 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     let spp = a.spp.unwrap_or(scene_spp);
     let width = a.width.unwrap_or(scene.file.width);
     let height = a.height.unwrap_or(scene.file.height);
-    let out = a
-        .output
-        .clone()
-        .unwrap_or_else(|| a.scene.with_extension("exr"));
+    let shard = a.shard.unwrap_or(Shard::WHOLE);
+    let out = a.output.clone().unwrap_or_else(|| match a.shard {
+        Some(s) => a
+            .scene
+            .with_extension(format!("shard-{}-of-{}.exr", s.index, s.count)),
+        None => a.scene.with_extension("exr"),
+    });
     let png = out.with_extension("png");
     if png == out {
         return Err(Error::in_file(
@@ -240,6 +305,7 @@ fn run_render(a: &RenderArgs) -> Result<()> {
         tile: a.tile.max(1),
         threads: a.threads,
         progress: !a.quiet,
+        shard,
     };
     let view = scene.data.view();
     if !a.quiet {
@@ -257,6 +323,22 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     // handler that cannot be installed (e.g. one is already set) only loses that feature.
     let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::Relaxed));
     let r = render_interruptible(&view, &camera, &settings, &INTERRUPTED);
+    if a.shard.is_some() {
+        if r.spp < spp {
+            eprintln!("ember: interrupted; a shard is written only when complete");
+            std::process::exit(130);
+        }
+        let key = render_key(&a.scene, width, height, &settings);
+        write_partial(&out, &r, &settings, &key)?;
+        eprintln!(
+            "ember: shard {}/{} in {:.2} s; wrote {}",
+            shard.index,
+            shard.count,
+            r.seconds,
+            out.display()
+        );
+        return Ok(());
+    }
     if r.spp < spp {
         if r.spp == 0 {
             eprintln!("ember: interrupted before the first pass finished; nothing written");
@@ -360,6 +442,7 @@ fn run_bake(a: &BakeArgs) -> Result<()> {
         seed: a.seed,
         threads: a.threads,
         progress: !a.quiet,
+        vertex_inset: a.vertex_inset,
     };
     let out = a
         .output
@@ -388,6 +471,8 @@ fn main() -> ExitCode {
         Command::Render(a) => run_render(a),
         Command::Bake(a) => run_bake(a),
         Command::Compare(a) => run_compare(a),
+        Command::Merge(a) => run_merge(a),
+        Command::Convert { input, output } => read_exr(input).and_then(|i| write_png(output, &i)),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -22,6 +22,55 @@ pub struct RenderSettings {
     /// Worker threads; 0 means one per core. Has no effect on the result.
     pub threads: usize,
     pub progress: bool,
+    /// Render only the tiles of this shard (see [`Shard`]); other pixels stay 0.
+    pub shard: Shard,
+}
+
+/// A deterministic part of a render for splitting it across processes or machines: tile `t`
+/// (in row-major tile order) belongs to shard `t mod count`. Every pixel's value depends only
+/// on its own samples, so the shards of a render, merged, are bit-identical to the whole.
+/// (Splitting by sample ranges instead would change the order in which each pixel's f32 sums
+/// are added, and with it the last bits.)
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Shard {
+    pub const WHOLE: Self = Self { index: 0, count: 1 };
+
+    /// Whether tile number `t` is rendered by this shard.
+    #[must_use]
+    pub fn owns(&self, t: usize) -> bool {
+        t % self.count.max(1) as usize == self.index as usize
+    }
+}
+
+/// Top-left corners of the `tile × tile` tiles of a `width × height` film, row-major.
+#[must_use]
+pub fn tiles(width: u32, height: u32, tile: u32) -> Vec<(u32, u32)> {
+    let tile = tile.max(1);
+    (0..height.div_ceil(tile))
+        .flat_map(|ty| (0..width.div_ceil(tile)).map(move |tx| (tx * tile, ty * tile)))
+        .collect()
+}
+
+/// Which pixels (row-major) a shard renders.
+#[must_use]
+pub fn shard_coverage(width: u32, height: u32, tile: u32, shard: Shard) -> Vec<bool> {
+    let tile = tile.max(1);
+    let mut covered = vec![false; width as usize * height as usize];
+    for (t, &(x0, y0)) in tiles(width, height, tile).iter().enumerate() {
+        if shard.owns(t) {
+            for y in y0..(y0 + tile).min(height) {
+                for x in x0..(x0 + tile).min(width) {
+                    covered[(y * width + x) as usize] = true;
+                }
+            }
+        }
+    }
+    covered
 }
 
 /// A rendered image with its per-pixel variance of the mean and counters.
@@ -81,11 +130,18 @@ pub fn render_interruptible(
     let start = std::time::Instant::now();
     let (w, h) = (camera.width, camera.height);
     let tile = s.tile.max(1);
-    let tiles: Vec<(u32, u32)> = (0..h.div_ceil(tile))
-        .flat_map(|ty| (0..w.div_ceil(tile)).map(move |tx| (tx * tile, ty * tile)))
+    let tiles: Vec<(u32, u32)> = tiles(w, h, tile)
+        .into_iter()
+        .enumerate()
+        .filter(|(t, _)| s.shard.owns(*t))
+        .map(|(_, corner)| corner)
         .collect();
     let bar = if s.progress {
-        let b = ProgressBar::new(u64::from(w) * u64::from(h) * u64::from(s.spp));
+        let pixels: u64 = tiles
+            .iter()
+            .map(|&(x0, y0)| u64::from(((x0 + tile).min(w) - x0) * ((y0 + tile).min(h) - y0)))
+            .sum();
+        let b = ProgressBar::new(pixels * u64::from(s.spp));
         b.set_style(
             ProgressStyle::with_template(
                 "{spinner} [{elapsed_precise}] {wide_bar} {percent}% of samples, ETA {eta}",

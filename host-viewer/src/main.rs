@@ -1,1 +1,296 @@
-fn main() {}
+//! `ember-view`: bakes (or reuses the bake of) a real-time `gi` scene and shows it, in a window
+//! or as one headless frame written like TinyRender's first real-time frame.
+
+use clap::Parser;
+use ember_cli::bake::{bake, default_bake_path, load_or_bake, BakeSettings};
+use ember_cli::image::write_exr;
+use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
+use ember_cli::{Error, LoadedScene};
+use ember_kernel::sampler::DEFAULT_SEED;
+use ember_viewer::{gpu, window, HeadlessGpu, ViewerError};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "ember-view",
+    version,
+    about = "Shows the baked global illumination of a real-time TinyRender \"gi\" scene",
+    long_about = "Shows the baked global illumination of a real-time TinyRender \"gi\" scene \
+        (per-vertex radiance, Gouraud shading).\n\n\
+        The bake is stored beside the scene (or at --bake) and reused while it is newer than \
+        the scene and made with the same settings.\n\n\
+        Window controls: left-drag orbits, wheel zooms, W/A/S/D/Q/E fly (Shift: faster), \
+        right-drag looks around, R resets the camera, F toggles false colour, Esc quits."
+)]
+struct Cli {
+    /// TinyRender scene file (.toml) with `realtime = true, type = "gi"`.
+    scene: PathBuf,
+    /// Render one frame offscreen and write it (EXR, linear, and a PNG preview beside it)
+    /// instead of opening a window.
+    #[arg(long)]
+    headless: bool,
+    /// Output EXR of --headless (default: next to the TOML with the same stem, as TinyRender).
+    #[arg(short, long, requires = "headless")]
+    output: Option<PathBuf>,
+    /// Paths per vertex of the bake (default: the scene's `samplesByVertex`).
+    #[arg(long)]
+    samples_per_vertex: Option<u32>,
+    /// Seed of the bake's sampler.
+    #[arg(long, default_value_t = DEFAULT_SEED)]
+    seed: u64,
+    /// Bake worker threads (default: one per core). Does not change the bake.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Film (or initial window) width in pixels (default: the scene's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Film (or initial window) height in pixels (default: the scene's).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Where the bake is stored (default: `<scene stem>.bake.ply` beside the TOML).
+    #[arg(long)]
+    bake: Option<PathBuf>,
+    /// Show the baked luminance on a log-scale colour ramp (turbo) instead of the radiance.
+    #[arg(long, alias = "false-color")]
+    false_colour: bool,
+    /// No progress bar and fewer messages.
+    #[arg(short, long)]
+    quiet: bool,
+    /// Bake each vertex this fraction of the way toward an adjacent triangle's centroid;
+    /// 0 bakes the vertex itself, as TinyRender does.
+    #[arg(long, default_value_t = ember_cli::bake::BAKE_INSET)]
+    vertex_inset: f32,
+}
+
+/// More worker threads than this is a typo, not a machine.
+const MAX_THREADS: usize = 4096;
+
+fn bad(scene: &Path, msg: impl Into<String>) -> ViewerError {
+    ViewerError::Input(Error::in_file(scene, msg))
+}
+
+fn run(a: &Cli) -> Result<(), ViewerError> {
+    // Command-line values are checked before any work.
+    if a.samples_per_vertex == Some(0) {
+        return Err(bad(&a.scene, "--samples-per-vertex 0: must be at least 1"));
+    }
+    for (flag, v) in [("--width", a.width), ("--height", a.height)] {
+        if let Some(v) = v.filter(|&v| v == 0 || v > MAX_FILM_SIDE) {
+            return Err(bad(
+                &a.scene,
+                format!("{flag} {v} is out of range 1..={MAX_FILM_SIDE}"),
+            ));
+        }
+    }
+    if a.threads > MAX_THREADS {
+        return Err(bad(
+            &a.scene,
+            format!("--threads {} is more than {MAX_THREADS}", a.threads),
+        ));
+    }
+    let outputs = if a.headless {
+        Some(output_paths(a)?)
+    } else {
+        None
+    };
+
+    let scene = LoadedScene::load(&a.scene)?;
+    for w in &scene.data.warnings {
+        eprintln!("warning: {}: {w}", scene.file.objfile.display());
+    }
+    let RendererDesc::Gi {
+        path,
+        samples_by_vertex,
+    } = scene.file.renderer
+    else {
+        return Err(bad(
+            &a.scene,
+            "not a real-time \"gi\" scene (realtime = true, type = \"gi\"): ember-view shows \
+             baked global illumination; render offline scenes with `ember render`",
+        ));
+    };
+    let settings = BakeSettings {
+        path: path.into(),
+        samples_per_vertex: a.samples_per_vertex.unwrap_or(samples_by_vertex),
+        seed: a.seed,
+        threads: a.threads,
+        progress: !a.quiet,
+        vertex_inset: a.vertex_inset,
+    };
+    // The default bake file sits beside the scene. A folder marked read-only (the shared
+    // TinyRender data) is respected even by root, who could write there: the bake is then
+    // made in memory only.
+    let default_read_only = a.bake.is_none()
+        && a.scene
+            .parent()
+            .map(|d| {
+                if d.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    d
+                }
+            })
+            .and_then(|d| std::fs::metadata(d).ok())
+            .is_some_and(|m| m.permissions().readonly());
+    let bake_path = a
+        .bake
+        .clone()
+        .unwrap_or_else(|| default_bake_path(&a.scene));
+    if !a.quiet {
+        eprintln!(
+            "ember-view: {} triangles, {} vertices; bake: {} paths/vertex, maxDepth {}, rrDepth {}, rrProb {}",
+            scene.data.triangles.len(),
+            scene.data.positions.len(),
+            settings.samples_per_vertex,
+            path.max_depth,
+            path.rr_depth,
+            path.rr_prob
+        );
+    }
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let before = modified(&bake_path);
+    let (mesh, report) = if default_read_only {
+        let (mesh, report) = bake(&scene, &settings)?;
+        (mesh, Some(report))
+    } else {
+        load_or_bake(&scene, &bake_path, &settings)?
+    };
+    match report {
+        Some(r) => {
+            let after = modified(&bake_path);
+            let stored = !default_read_only && after.is_some() && after != before;
+            eprintln!(
+                "ember-view: baked {} face corners as {} unique vertices in {:.2} s: {} paths traced, {} saved; {}",
+                r.face_corners,
+                r.unique_keys,
+                r.seconds,
+                r.paths_traced,
+                r.paths_saved,
+                if stored {
+                    format!("stored at {}", bake_path.display())
+                } else if default_read_only {
+                    format!(
+                        "not stored: {} is read-only (--bake PATH keeps it)",
+                        bake_path.parent().unwrap_or(Path::new(".")).display()
+                    )
+                } else {
+                    "not stored".to_string()
+                }
+            );
+        }
+        None => eprintln!("ember-view: reusing the bake at {}", bake_path.display()),
+    }
+
+    let width = a.width.unwrap_or(scene.file.width);
+    let height = a.height.unwrap_or(scene.file.height);
+    let camera = &scene.file.camera;
+    let Some((exr, png)) = outputs else {
+        let name = a.scene.file_name().map_or_else(
+            || a.scene.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        return window::run(
+            mesh,
+            camera,
+            window::WindowOptions {
+                name,
+                width,
+                height,
+                false_colour: a.false_colour,
+            },
+        );
+    };
+
+    let gpu = HeadlessGpu::new()?;
+    eprintln!(
+        "ember-view: adapter {} (set up in {:.0} ms)",
+        gpu::describe(&gpu.info()),
+        gpu.setup_ms
+    );
+    let frame = gpu.render(&mesh, camera, width, height, a.false_colour)?;
+    if a.false_colour && !a.quiet {
+        let [lo, hi] = gpu::false_colour_range(&mesh);
+        eprintln!(
+            "ember-view: false colour: luminance {:.3e} (blue) to {:.3e} (red), log scale",
+            10f32.powf(lo),
+            10f32.powf(hi)
+        );
+    }
+    write_exr(&exr, &frame.image)?;
+    if let Err(e) = write_png_srgb8(&png, width, height, &frame.srgb8) {
+        // Leave no half of the output behind.
+        let _ = std::fs::remove_file(&exr);
+        return Err(e.into());
+    }
+    let mean = frame.image.mean();
+    eprintln!(
+        "ember-view: {width}x{height} frame in {:.2} ms (submit to read-back mapped; upload and pipeline {:.1} ms), mean RGB ({:.5}, {:.5}, {:.5})",
+        frame.info.frame_ms, frame.info.upload_ms, mean.x, mean.y, mean.z
+    );
+    eprintln!("ember-view: wrote {} and {}", exr.display(), png.display());
+    Ok(())
+}
+
+/// The EXR (given, or `<scene stem>.exr` beside the TOML) and the PNG beside it; the folder must
+/// exist.
+fn output_paths(a: &Cli) -> Result<(PathBuf, PathBuf), ViewerError> {
+    let exr = a
+        .output
+        .clone()
+        .unwrap_or_else(|| a.scene.with_extension("exr"));
+    let png = exr.with_extension("png");
+    if png == exr {
+        return Err(bad(
+            &exr,
+            "the output must be the EXR (a .png preview is written beside it); use -o NAME.exr",
+        ));
+    }
+    let dir = exr
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(bad(
+            &exr,
+            format!("output directory {} does not exist", dir.display()),
+        ));
+    }
+    Ok((exr, png))
+}
+
+/// Writes the GPU's 8-bit sRGB bytes as they are (RGB, row 0 at the top), atomically.
+fn write_png_srgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> ember_cli::Result<()> {
+    let err = |e: &dyn std::fmt::Display| Error::in_file(path, format!("cannot write PNG: {e}"));
+    ember_cli::image::write_atomically(path, |tmp| {
+        let file = std::fs::File::create(tmp).map_err(|e| err(&e))?;
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(&file), width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut w = enc.write_header().map_err(|e| err(&e))?;
+        w.write_image_data(rgb).map_err(|e| err(&e))?;
+        w.finish().map_err(|e| err(&e))?;
+        file.sync_all().map_err(|e| err(&e))
+    })
+}
+
+fn main() -> ExitCode {
+    // Mesa's Vulkan device-selection layer connects to Wayland to order the devices and, with
+    // no session (XDG_RUNTIME_DIR unset: ssh, CI, containers), prints "error: XDG_RUNTIME_DIR
+    // is invalid" although nothing fails. wgpu chooses the adapter itself, so the layer is
+    // turned off there. (Set before any thread starts.)
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none()
+        && std::env::var_os("NODEVICE_SELECT").is_none()
+    {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
+    let cli = Cli::parse();
+    match run(&cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(e.exit_code())
+        }
+    }
+}

@@ -19,6 +19,7 @@ fn settings(spv: u32, threads: usize) -> BakeSettings {
         seed: DEFAULT_SEED,
         threads,
         progress: false,
+        vertex_inset: ember_cli::bake::BAKE_INSET,
     }
 }
 

@@ -93,7 +93,10 @@ fn interrupted_render_writes_the_completed_passes() {
         .and_then(|s| s.strip_suffix("spp.exr"))
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("unexpected partial name {name}"));
-    assert!(spp > 0 && spp < SPP && spp.is_multiple_of(PASS), "{spp} spp");
+    assert!(
+        spp > 0 && spp < SPP && spp.is_multiple_of(PASS),
+        "{spp} spp"
+    );
     assert!(stderr.contains(&format!("interrupted after {spp} of {SPP} spp")));
 
     let written = ember_cli::image::read_exr(partial).unwrap();

@@ -78,6 +78,7 @@ pub fn render_scene_full(
             tile,
             threads,
             progress: false,
+            shard: ember_cli::render::Shard::WHOLE,
         },
     )
 }
