@@ -12,7 +12,7 @@
 
 use crate::error::{Error, Result};
 use crate::LoadedScene;
-use ember_kernel::integrator::{bake_vertex, BakePoint, PathSettings};
+use ember_kernel::integrator::{bake_vertex, BakeEstimator, BakePoint, PathSettings};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -44,6 +44,20 @@ pub struct BakeSettings {
     /// of their hemisphere through the neighbouring wall (dark seams along every corner);
     /// 0 reproduces TinyRender's bake, and its reference images, exactly.
     pub vertex_inset: f32,
+    /// MIS (default) or TinyRender's explicit path tracer.
+    pub estimator: BakeEstimator,
+}
+
+/// Parses `--bake-estimator` (`mis` or `explicit`).
+///
+/// # Errors
+/// Any other word.
+pub fn parse_estimator(s: &str) -> std::result::Result<BakeEstimator, String> {
+    match s {
+        "mis" => Ok(BakeEstimator::Mis),
+        "explicit" => Ok(BakeEstimator::Explicit),
+        _ => Err(format!("{s:?}: expected mis or explicit")),
+    }
 }
 
 /// Counts of a bake, for reports.
@@ -145,6 +159,7 @@ pub fn bake(scene: &LoadedScene, s: &BakeSettings) -> Result<(BakedMesh, BakeRep
                     &view,
                     point,
                     &s.path,
+                    s.estimator,
                     s.seed,
                     k as u64,
                     s.samples_per_vertex,
@@ -190,6 +205,7 @@ pub fn provenance(scene: &LoadedScene, s: &BakeSettings) -> Vec<(String, String)
         ("rr_depth".into(), s.path.rr_depth.to_string()),
         ("rr_prob".into(), s.path.rr_prob.to_string()),
         ("vertex_inset".into(), s.vertex_inset.to_string()),
+        ("estimator".into(), format!("{:?}", s.estimator)),
         // A hash of the kernel's and the baker's sources (build.rs): a bake made by other
         // code is never reused.
         ("code".into(), env!("EMBER_BAKE_CODE_HASH").into()),

@@ -108,6 +108,11 @@ struct BakeArgs {
     /// 0 bakes the vertex itself, as TinyRender does (see README).
     #[arg(long, default_value_t = BAKE_INSET)]
     vertex_inset: f32,
+    /// Path tracer of the bake: `mis` (default; low variance at room edges) or `explicit`
+    /// (TinyRender's, next-event estimation only). With `--vertex-inset 0 --bake-estimator
+    /// explicit` the bake is TinyRender's.
+    #[arg(long, value_parser = ember_cli::bake::parse_estimator, default_value = "mis")]
+    bake_estimator: ember_kernel::integrator::BakeEstimator,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -443,6 +448,7 @@ fn run_bake(a: &BakeArgs) -> Result<()> {
         threads: a.threads,
         progress: !a.quiet,
         vertex_inset: a.vertex_inset,
+        estimator: a.bake_estimator,
     };
     let out = a
         .output

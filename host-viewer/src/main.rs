@@ -61,6 +61,11 @@ struct Cli {
     /// 0 bakes the vertex itself, as TinyRender does.
     #[arg(long, default_value_t = ember_cli::bake::BAKE_INSET)]
     vertex_inset: f32,
+    /// Path tracer of the bake: `mis` (default; low variance at room edges) or `explicit`
+    /// (TinyRender's, next-event estimation only). With `--vertex-inset 0 --bake-estimator
+    /// explicit` the bake is TinyRender's.
+    #[arg(long, value_parser = ember_cli::bake::parse_estimator, default_value = "mis")]
+    bake_estimator: ember_kernel::integrator::BakeEstimator,
 }
 
 /// More worker threads than this is a typo, not a machine.
@@ -117,6 +122,7 @@ fn run(a: &Cli) -> Result<(), ViewerError> {
         threads: a.threads,
         progress: !a.quiet,
         vertex_inset: a.vertex_inset,
+        estimator: a.bake_estimator,
     };
     // The default bake file sits beside the scene. A folder marked read-only (the shared
     // TinyRender data) is respected even by root, who could write there: the bake is then

@@ -20,6 +20,7 @@ fn settings(spv: u32, threads: usize) -> BakeSettings {
         threads,
         progress: false,
         vertex_inset: ember_cli::bake::BAKE_INSET,
+        estimator: ember_kernel::integrator::BakeEstimator::Mis,
     }
 }
 

@@ -1,12 +1,23 @@
 //! Per-vertex precomputed global illumination (TinyRender's `gi` pass, FORMAT.md §6).
 
-use super::{li_mis_from_surface, PathSettings};
+use super::{li_explicit_from_surface, li_mis_from_surface, PathSettings};
 use crate::bsdf::{Bsdf, Diffuse};
 use crate::math::{gamma, Frame};
 use crate::sampler::IndependentSampler;
 use crate::scene::{SceneView, SurfaceInteraction};
 use crate::Rgb;
 use glam::Vec3;
+
+/// The path tracer a bake runs from each vertex.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BakeEstimator {
+    /// Multiple importance sampling of direct light (the default): low variance everywhere.
+    #[default]
+    Mis,
+    /// TinyRender's explicit path tracing (next-event estimation only): the estimator of its
+    /// reference images, with unbounded variance at vertices on room edges.
+    Explicit,
+}
 
 /// A surface point to bake: position, unit normal and material.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -19,8 +30,8 @@ pub struct BakePoint {
 /// Estimates the diffuse outgoing radiance at `point` from `samples` path-tracing samples:
 /// `Le + (ρ_d/π) ∫ Lᵢ cosθ dω`, where `ρ_d` is the material's diffuse reflectance.
 ///
-/// The estimator is explicit path tracing with multiple importance sampling of direct light
-/// ([`li_mis_from_surface`]). Mesh vertices sit on the edges where walls meet, and there pure
+/// The default estimator is explicit path tracing with multiple importance sampling of direct
+/// light ([`li_mis_from_surface`], [`BakeEstimator::Mis`]). Mesh vertices sit on the edges where walls meet, and there pure
 /// next-event estimation has unbounded variance (the 1/d² of the neighbouring wall): its
 /// estimates at room edges came out 20–30% low at 1024 samples in the furnace test. The BSDF
 /// samples that MIS adds cover the near field; the expected value is the same.
@@ -38,6 +49,7 @@ pub fn bake_vertex(
     scene: &SceneView<'_>,
     point: &BakePoint,
     settings: &PathSettings,
+    estimator: BakeEstimator,
     seed: u64,
     key: u64,
     samples: u32,
@@ -61,7 +73,12 @@ pub fn bake_vertex(
     let mut sum = Rgb::ZERO;
     for i in 0..samples {
         let mut sampler = IndependentSampler::new(seed, key, i);
-        let l = li_mis_from_surface(scene, si, &diffuse, settings, &mut sampler);
+        let l = match estimator {
+            BakeEstimator::Mis => li_mis_from_surface(scene, si, &diffuse, settings, &mut sampler),
+            BakeEstimator::Explicit => {
+                li_explicit_from_surface(scene, si, &diffuse, settings, &mut sampler)
+            }
+        };
         if crate::math::is_finite(l) {
             sum += l;
         }

@@ -16,7 +16,7 @@ mod explicit;
 mod implicit;
 mod mis;
 
-pub use bake::{bake_vertex, BakePoint};
+pub use bake::{bake_vertex, BakeEstimator, BakePoint};
 pub use direct::{sample_direct, DirectSample};
 pub use explicit::{li_explicit, li_explicit_from_surface};
 pub use implicit::li_implicit;
