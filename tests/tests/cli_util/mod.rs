@@ -18,17 +18,28 @@ use std::sync::OnceLock;
 /// be tested silently; when it is up to date, the build is a no-op.
 pub fn ember() -> &'static Path {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
+    BIN.get_or_init(|| build_binary("ember-cli", "ember"))
+}
+
+/// The `ember-view` binary, built like [`ember`] and placed beside it (where `ember render`
+/// looks for it).
+pub fn ember_view() -> &'static Path {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| build_binary("ember-viewer", "ember-view"))
+}
+
+fn build_binary(package: &str, name: &str) -> PathBuf {
+    {
         let exe = std::env::current_exe().expect("current_exe");
         let deps = exe.parent().expect("test binary has a directory");
         let profile_dir = deps.parent().expect("deps directory has a parent");
         let target_dir = profile_dir
             .parent()
             .expect("profile directory has a parent");
-        let bin = profile_dir.join(format!("ember{}", std::env::consts::EXE_SUFFIX));
+        let bin = profile_dir.join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
         let mut cmd = Command::new(cargo);
-        cmd.args(["build", "--quiet", "-p", "ember-cli", "--bin", "ember"])
+        cmd.args(["build", "--quiet", "-p", package, "--bin", name])
             .current_dir(env!("CARGO_MANIFEST_DIR"))
             .env("CARGO_TARGET_DIR", target_dir);
         if !cfg!(debug_assertions) {
@@ -37,8 +48,8 @@ pub fn ember() -> &'static Path {
         match cmd.status() {
             Ok(s) if s.success() => {}
             // Without a working cargo (test binary run by hand), an existing binary will do.
-            Ok(s) if !bin.exists() => panic!("`cargo build -p ember-cli --bin ember` failed: {s}"),
-            Err(e) if !bin.exists() => panic!("cannot run cargo to build ember: {e}"),
+            Ok(s) if !bin.exists() => panic!("`cargo build -p {package} --bin {name}` failed: {s}"),
+            Err(e) if !bin.exists() => panic!("cannot run cargo to build {name}: {e}"),
             _ => eprintln!(
                 "warning: could not rebuild {}; using it as is",
                 bin.display()
@@ -46,11 +57,11 @@ pub fn ember() -> &'static Path {
         }
         assert!(
             bin.is_file(),
-            "ember binary not found at {} after building it",
+            "{name} binary not found at {} after building it",
             bin.display()
         );
         bin
-    })
+    }
 }
 
 /// Runs `ember` with the given arguments.
