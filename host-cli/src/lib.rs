@@ -2,6 +2,7 @@
 //! image output. The `ember` binary and the viewer are thin layers over it.
 
 pub mod bake;
+pub mod bench;
 pub mod compare;
 pub mod error;
 pub mod image;

@@ -44,6 +44,10 @@ enum Command {
     /// Merge the partial EXRs of `ember render --shard I/N` into one image, bit-identical to
     /// an unsharded render.
     Merge(MergeArgs),
+    /// Run time against error: renders at 1, 2, 4, … spp per integrator until a rung exceeds
+    /// the time budget, and writes bench.csv and a log-log plot bench.svg of relative MSE
+    /// against wall time.
+    Bench(ember_cli::bench::BenchArgs),
 }
 
 #[derive(clap::Args)]
@@ -478,6 +482,7 @@ fn main() -> ExitCode {
         Command::Bake(a) => run_bake(a),
         Command::Compare(a) => run_compare(a),
         Command::Merge(a) => run_merge(a),
+        Command::Bench(a) => ember_cli::bench::run(a),
         Command::Convert { input, output } => read_exr(input).and_then(|i| write_png(output, &i)),
     };
     match result {

@@ -84,6 +84,8 @@ pub struct Rendered {
     pub spp: u32,
     /// Samples that were NaN or infinite (counted as 0).
     pub invalid_samples: u64,
+    /// Rays traced (camera, continuation and shadow rays).
+    pub rays: u64,
     pub seconds: f64,
 }
 
@@ -207,6 +209,7 @@ pub fn render_interruptible(
     let mut image = Image::new(w, h);
     let mut variance = Image::new(w, h);
     let mut invalid = 0u64;
+    let mut rays = 0u64;
     let n = done as f32;
     for (&(x0, y0), stats) in tiles.iter().zip(&sums) {
         let mut it = stats.iter();
@@ -224,6 +227,7 @@ pub fn render_interruptible(
                     };
                 }
                 invalid += u64::from(p.invalid);
+                rays += p.rays;
             }
         }
     }
@@ -232,6 +236,7 @@ pub fn render_interruptible(
         variance,
         spp: done,
         invalid_samples: invalid,
+        rays,
         seconds: start.elapsed().as_secs_f64(),
     }
 }

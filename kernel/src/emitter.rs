@@ -1,6 +1,6 @@
 //! Area emitters: emissive triangles sampled from a CDF in a caller slice (FORMAT.md §5).
 
-use crate::geometry::triangle_point_error;
+use crate::geometry::triangle_point;
 use crate::math::{warp, AreaPdf};
 use crate::scene::SceneView;
 use crate::Rgb;
@@ -52,7 +52,7 @@ pub fn sample_emitter(scene: &SceneView<'_>, u_select: f32, u_pos: Vec2) -> Opti
     }
     let b = warp::sample_uniform_triangle(u_pos);
     let b0 = 1.0 - b.x - b.y;
-    let p = p0 * b0 + p1 * b.x + p2 * b.y;
+    let (p, p_err) = triangle_point(b.x, b.y, p0, p1, p2);
     let [i0, i1, i2] = scene.triangles[triangle as usize];
     let nrm = |k: u32| scene.normals[k as usize];
     let ng = cross / (2.0 * area);
@@ -60,7 +60,7 @@ pub fn sample_emitter(scene: &SceneView<'_>, u_select: f32, u_pos: Vec2) -> Opti
     let material = scene.material(scene.triangle_materials[triangle as usize]);
     Some(EmitterSample {
         p,
-        p_err: triangle_point_error(b0, b.x, b.y, p0, p1, p2),
+        p_err,
         ng,
         n: if n == Vec3::ZERO { ng } else { n },
         radiance: material.emission,
@@ -88,6 +88,100 @@ pub fn emitter_pdf(scene: &SceneView<'_>, triangle: u32) -> AreaPdf {
     } else {
         AreaPdf(0.0)
     }
+}
+
+/// Why [`build_emitter_table`] could not fill the table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmitterTableError {
+    /// A triangle refers to a missing vertex.
+    VertexIndex { triangle: usize, index: u32 },
+    /// `triangle_materials` is not one entry per triangle.
+    MaterialCount { triangles: usize, materials: usize },
+    /// The output slices hold fewer than `needed` entries (or differ in length).
+    Capacity { needed: usize, given: usize },
+}
+
+impl core::fmt::Display for EmitterTableError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::VertexIndex { triangle, index } => {
+                write!(f, "triangle {triangle} refers to missing vertex {index}")
+            }
+            Self::MaterialCount {
+                triangles,
+                materials,
+            } => write!(f, "{triangles} triangles but {materials} material ids"),
+            Self::Capacity { needed, given } => {
+                write!(
+                    f,
+                    "emitter table needs {needed} entries but {given} were provided"
+                )
+            }
+        }
+    }
+}
+
+/// Area of a triangle, as the samplers compute it.
+#[inline]
+fn triangle_area(positions: &[Vec3], t: [u32; 3]) -> f32 {
+    let [p0, p1, p2] = t.map(|i| positions[i as usize]);
+    0.5 * (p1 - p0).cross(p2 - p0).length()
+}
+
+/// Fills the emitter table of [`SceneView`] (`emitter_triangles`, `emitter_cdf`) with every
+/// triangle whose material `emissive(material id)` says emits and whose area is positive, in
+/// ascending triangle order, each chosen **in proportion to its area** over all of them.
+/// Returns the number of entries written (0 when nothing emits).
+///
+/// This is TinyRender's rule ("an emitter uniformly, then a triangle of it by area") when the
+/// scene has one emitting object, and gives bit-identical tables then (the sums are in f64, as
+/// the command-line host computes them). A host that groups triangles into several emitting
+/// objects and wants them chosen uniformly builds its own table, as `host-cli` does.
+///
+/// # Errors
+/// Missing vertices, a material id count that differs from the triangle count, or output
+/// slices shorter than the number of emitting triangles (the error says how many are needed;
+/// pass empty slices to ask).
+pub fn build_emitter_table(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    triangle_materials: &[u32],
+    emissive: impl Fn(u32) -> bool,
+    out_triangles: &mut [u32],
+    out_cdf: &mut [f32],
+) -> Result<usize, EmitterTableError> {
+    if triangle_materials.len() != triangles.len() {
+        return Err(EmitterTableError::MaterialCount {
+            triangles: triangles.len(),
+            materials: triangle_materials.len(),
+        });
+    }
+    for (t, tri) in triangles.iter().enumerate() {
+        if let Some(&index) = tri.iter().find(|&&v| v as usize >= positions.len()) {
+            return Err(EmitterTableError::VertexIndex { triangle: t, index });
+        }
+    }
+    // The area of each emitting triangle, or `None` for the others.
+    let emitting = |t: usize| {
+        let area = triangle_area(positions, triangles[t]);
+        (emissive(triangle_materials[t]) && area > 0.0).then_some(area)
+    };
+    let (needed, total) = (0..triangles.len())
+        .filter_map(emitting)
+        .fold((0usize, 0.0f64), |(n, sum), a| (n + 1, sum + f64::from(a)));
+    let given = out_triangles.len().min(out_cdf.len());
+    if given < needed {
+        return Err(EmitterTableError::Capacity { needed, given });
+    }
+    let mut acc = 0.0f64;
+    let entries = (0..triangles.len()).filter_map(|t| emitting(t).map(|a| (t, a)));
+    for ((t, area), (out_t, out_c)) in entries.zip(out_triangles.iter_mut().zip(out_cdf.iter_mut()))
+    {
+        acc += f64::from(area) / total;
+        *out_t = t as u32;
+        *out_c = acc as f32;
+    }
+    Ok(needed)
 }
 
 #[cfg(test)]

@@ -11,8 +11,12 @@
 //! - [`emitter`]: area emitters sampled by area.
 //! - [`scene`]: [`scene::SceneView`], the borrowed scene every integrator works on.
 //! - [`integrator`]: path tracers (implicit and explicit).
+//! - `capi` (feature `capi`): the C API over caller-owned arrays (`kernel/include/ember.h`).
 #![no_std]
-#![forbid(unsafe_code)]
+// No `unsafe` anywhere, except in the C API when it is compiled in: there raw pointers from C
+// are turned into slices, every such block with its SAFETY argument.
+#![cfg_attr(not(feature = "capi"), forbid(unsafe_code))]
+#![cfg_attr(feature = "capi", deny(unsafe_code))]
 
 #[cfg(test)]
 extern crate std;
@@ -20,6 +24,9 @@ extern crate std;
 pub mod bsdf;
 pub mod bvh;
 pub mod camera;
+#[cfg(feature = "capi")]
+#[allow(unsafe_code)]
+pub mod capi;
 pub mod emitter;
 pub mod geometry;
 pub mod integrator;

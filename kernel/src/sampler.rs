@@ -16,6 +16,41 @@ pub trait Sampler {
         let y = self.next_1d();
         Vec2::new(x, y)
     }
+    /// Integrators call this once for every ray they trace (closest-hit and shadow), so a
+    /// sampler that travels with the path can count them ([`RayCounting`]). It draws nothing;
+    /// the default does nothing and compiles away.
+    #[inline]
+    fn count_ray(&mut self) {}
+}
+
+/// A sampler that counts the rays traced with it: the numbers are `S`'s, unchanged.
+#[derive(Clone, Copy, Debug)]
+pub struct RayCounting<S> {
+    pub inner: S,
+    pub rays: u32,
+}
+
+impl<S> RayCounting<S> {
+    #[inline]
+    #[must_use]
+    pub fn new(inner: S) -> Self {
+        Self { inner, rays: 0 }
+    }
+}
+
+impl<S: Sampler> Sampler for RayCounting<S> {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        self.inner.next_1d()
+    }
+    #[inline]
+    fn next_2d(&mut self) -> Vec2 {
+        self.inner.next_2d()
+    }
+    #[inline]
+    fn count_ray(&mut self) {
+        self.rays = self.rays.wrapping_add(1);
+    }
 }
 
 /// The default seed of the command-line renderer (`--seed`): 0x656D626572, "ember" in ASCII.

@@ -2,7 +2,7 @@
 
 use crate::bsdf::Bsdf;
 use crate::bvh::Bvh;
-use crate::geometry::{intersect_triangle, triangle_point_error, Ray};
+use crate::geometry::{inset_barycentrics, intersect_triangle, triangle_point, Ray};
 use crate::math::Frame;
 use crate::Rgb;
 use glam::Vec3;
@@ -113,8 +113,13 @@ pub struct Hit {
 /// A point on a surface with what shading and ray spawning need.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfaceInteraction {
+    /// The shading point.
     pub p: Vec3,
-    /// Absolute error bound of `p` per axis (for robust ray origins).
+    /// Where rays leave from: `p`, or for a point within its error bound of an edge of its
+    /// triangle, a point moved inside by that bound ([`inset_barycentrics`]), so that the
+    /// rounding of `p` cannot put a ray origin behind a surface meeting the triangle there.
+    pub p_spawn: Vec3,
+    /// Absolute error bound per axis of both `p` and `p_spawn` (for robust ray origins).
     pub p_err: Vec3,
     /// Geometric normal, `normalize(cross(p1 − p0, p2 − p0))` (counter-clockwise is the front).
     pub ng: Vec3,
@@ -131,7 +136,7 @@ impl SurfaceInteraction {
     #[inline]
     #[must_use]
     pub fn spawn_ray(&self, d: Vec3) -> Ray {
-        crate::geometry::spawn_ray(self.p, self.p_err, self.ng, d)
+        crate::geometry::spawn_ray(self.p_spawn, self.p_err, self.ng, d)
     }
 }
 
@@ -258,9 +263,16 @@ impl<'a> SceneView<'a> {
         let [i0, i1, i2] = self.triangles[triangle as usize];
         let [p0, p1, p2] = self.triangle_vertices(triangle);
         let b0 = 1.0 - b1 - b2;
-        let p = p0 * b0 + p1 * b1 + p2 * b2;
-        let p_err = triangle_point_error(b0, b1, b2, p0, p1, p2);
+        let (p, p_err) = triangle_point(b1, b2, p0, p1, p2);
         let ng = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+        let b = [b0, b1, b2];
+        let bs = inset_barycentrics(b, [p0, p1, p2], ng, p_err);
+        let (p_spawn, p_err) = if bs == b {
+            (p, p_err)
+        } else {
+            let (q, e) = triangle_point(bs[1], bs[2], p0, p1, p2);
+            (q, p_err.max(e))
+        };
         let n = |i: u32| self.normals[i as usize];
         let ns = (n(i0) * b0 + n(i1) * b1 + n(i2) * b2).normalize_or_zero();
         // Degenerate vertex normals fall back to the geometric normal.
@@ -268,6 +280,7 @@ impl<'a> SceneView<'a> {
         let frame = Frame::from_normal(if ns == Vec3::ZERO { Vec3::Z } else { ns });
         SurfaceInteraction {
             p,
+            p_spawn,
             p_err,
             ng,
             frame,

@@ -2,6 +2,7 @@
 
 use super::BvhNode;
 use crate::geometry::Aabb;
+use glam::Vec3;
 
 /// Leaves hold at most this many primitives unless the centroids cannot be separated.
 pub const MAX_LEAF_PRIMS: usize = 4;
@@ -36,6 +37,8 @@ pub enum BvhError {
     TooManyPrims,
     /// The tree would be deeper than [`MAX_DEPTH`] with a leaf too large to stop there.
     TooDeep,
+    /// A triangle refers to a vertex that does not exist ([`build_triangles`]).
+    VertexIndex { triangle: usize, index: u32 },
 }
 
 impl core::fmt::Display for BvhError {
@@ -52,6 +55,9 @@ impl core::fmt::Display for BvhError {
             }
             Self::TooManyPrims => write!(f, "too many primitives for 32-bit indices"),
             Self::TooDeep => write!(f, "BVH deeper than {MAX_DEPTH} levels"),
+            Self::VertexIndex { triangle, index } => {
+                write!(f, "triangle {triangle} refers to missing vertex {index}")
+            }
         }
     }
 }
@@ -88,7 +94,50 @@ pub fn build(
     nodes: &mut [BvhNode],
     prim_order: &mut [u32],
 ) -> Result<usize, BvhError> {
-    let n = bounds.len();
+    build_with(bounds.len(), |p| bounds[p as usize], nodes, prim_order)
+}
+
+/// Builds a BVH over the triangles `triangles` of `positions`, computing each triangle's bounds
+/// when the build needs them, so no bounds array is needed (the C API and engines that keep no
+/// scratch memory). The tree is the one [`build`] makes from `Aabb::from_points` of each
+/// triangle, bit for bit.
+///
+/// # Errors
+/// A triangle referring to a missing vertex, or as [`build`].
+pub fn build_triangles(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    nodes: &mut [BvhNode],
+    prim_order: &mut [u32],
+) -> Result<usize, BvhError> {
+    for (t, tri) in triangles.iter().enumerate() {
+        if let Some(&index) = tri.iter().find(|&&v| v as usize >= positions.len()) {
+            return Err(BvhError::VertexIndex { triangle: t, index });
+        }
+    }
+    let bounds = |p: u32| {
+        let [a, b, c] = triangles[p as usize];
+        Aabb::from_points(
+            positions[a as usize],
+            positions[b as usize],
+            positions[c as usize],
+        )
+    };
+    build_with(triangles.len(), bounds, nodes, prim_order)
+}
+
+/// [`build`] over `n` primitives whose bounds `bounds(i)` returns (called several times per
+/// primitive; it must return the same box every time).
+///
+/// # Errors
+/// As [`build`].
+pub fn build_with<B: Fn(u32) -> Aabb>(
+    n: usize,
+    bounds: B,
+    nodes: &mut [BvhNode],
+    prim_order: &mut [u32],
+) -> Result<usize, BvhError> {
+    let bounds = &bounds;
     if u32::try_from(n).is_err() {
         return Err(BvhError::TooManyPrims);
     }
@@ -142,7 +191,7 @@ pub fn build(
             let mut node_bounds = Aabb::EMPTY;
             let mut centroid_bounds = Aabb::EMPTY;
             for &p in prims.iter() {
-                let b = bounds[p as usize];
+                let b = bounds(p);
                 node_bounds = node_bounds.union(b);
                 centroid_bounds = centroid_bounds.grow(b.centroid());
             }
@@ -222,7 +271,7 @@ fn bin_of(c: f32, lo: f32, extent: f32) -> usize {
 
 /// Best binned-SAH split over all three axes, with the cost in units of primitive tests.
 fn choose_split(
-    bounds: &[Aabb],
+    bounds: &impl Fn(u32) -> Aabb,
     prims: &[u32],
     node_bounds: &Aabb,
     centroid_bounds: &Aabb,
@@ -236,7 +285,7 @@ fn choose_split(
         }
         let mut bins = [Bin::default(); BINS];
         for &p in prims {
-            let b = bounds[p as usize];
+            let b = bounds(p);
             let i = bin_of(b.centroid()[axis], centroid_bounds.min[axis], extent[axis]);
             bins[i].count += 1;
             bins[i].bounds = bins[i].bounds.union(b);
@@ -271,12 +320,16 @@ fn choose_split(
 
 /// Object-median split along the widest centroid axis: the first half of `prims` gets the
 /// primitives with the smaller centroids. Always makes two non-empty halves.
-fn median_split(bounds: &[Aabb], prims: &mut [u32], centroid_bounds: &Aabb) -> (usize, usize) {
+fn median_split(
+    bounds: &impl Fn(u32) -> Aabb,
+    prims: &mut [u32],
+    centroid_bounds: &Aabb,
+) -> (usize, usize) {
     let axis = centroid_bounds.extent().max_position();
     let mid = prims.len() / 2;
     prims.select_nth_unstable_by(mid, |&a, &b| {
-        let ca = bounds[a as usize].centroid()[axis];
-        let cb = bounds[b as usize].centroid()[axis];
+        let ca = bounds(a).centroid()[axis];
+        let cb = bounds(b).centroid()[axis];
         ca.total_cmp(&cb)
     });
     (axis, mid)
@@ -285,14 +338,14 @@ fn median_split(bounds: &[Aabb], prims: &mut [u32], centroid_bounds: &Aabb) -> (
 /// Moves primitives whose centroid falls in bins `0..=bin` to the front; returns their count,
 /// or `None` if one side would be empty.
 fn partition(
-    bounds: &[Aabb],
+    bounds: &impl Fn(u32) -> Aabb,
     prims: &mut [u32],
     centroid_bounds: &Aabb,
     axis: usize,
     bin: usize,
 ) -> Option<usize> {
     let (lo, extent) = (centroid_bounds.min[axis], centroid_bounds.extent()[axis]);
-    let left = |p: u32| bin_of(bounds[p as usize].centroid()[axis], lo, extent) <= bin;
+    let left = |p: u32| bin_of(bounds(p).centroid()[axis], lo, extent) <= bin;
     let mut i = 0;
     let mut j = prims.len();
     while i < j {

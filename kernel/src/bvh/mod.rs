@@ -8,7 +8,9 @@
 mod build;
 mod traverse;
 
-pub use build::{build, max_nodes, BvhError, MAX_DEPTH, MAX_LEAF_PRIMS, SAH_DEPTH};
+pub use build::{
+    build, build_triangles, build_with, max_nodes, BvhError, MAX_DEPTH, MAX_LEAF_PRIMS, SAH_DEPTH,
+};
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 
 use crate::geometry::Aabb;

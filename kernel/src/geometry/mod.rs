@@ -6,4 +6,6 @@ mod triangle;
 
 pub use aabb::Aabb;
 pub use ray::{offset_ray_origin, spawn_ray, spawn_ray_to, Ray, SHADOW_EPSILON};
-pub use triangle::{intersect_triangle, triangle_point_error, TriangleHit};
+pub use triangle::{
+    inset_barycentrics, intersect_triangle, triangle_point, triangle_point_error, TriangleHit,
+};

@@ -61,6 +61,7 @@ pub fn bake_vertex(
     let frame = Frame::from_normal(n);
     let si = SurfaceInteraction {
         p: point.p,
+        p_spawn: point.p,
         p_err: point.p.abs() * gamma(1),
         ng: n,
         frame,

@@ -4,6 +4,7 @@ use crate::bsdf::{Bsdf, TransportMode};
 use crate::emitter::sample_emitter;
 use crate::geometry::spawn_ray_to;
 use crate::math::SolidAnglePdf;
+use crate::sampler::Sampler;
 use crate::scene::{SceneView, SurfaceInteraction};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -21,13 +22,16 @@ pub struct DirectSample {
 
 /// Samples a point on the emitters and returns its unweighted contribution, or `None` when the
 /// point is occluded, faces away, lies below the shading hemisphere or the BSDF is zero there.
+/// The shadow ray, when one is traced, is reported to `sampler` ([`Sampler::count_ray`]); no
+/// numbers are drawn from it.
 #[inline]
-pub fn sample_direct(
+pub fn sample_direct<S: Sampler>(
     scene: &SceneView<'_>,
     si: &SurfaceInteraction,
     bsdf: &Bsdf,
     u_select: f32,
     u_light: Vec2,
+    sampler: &mut S,
 ) -> Option<DirectSample> {
     let es = sample_emitter(scene, u_select, u_light)?;
     let to_light = es.p - si.p;
@@ -48,7 +52,8 @@ pub fn sample_direct(
     if f == Rgb::ZERO {
         return None;
     }
-    let shadow = spawn_ray_to(si.p, si.p_err, si.ng, es.p, es.p_err, es.ng);
+    let shadow = spawn_ray_to(si.p_spawn, si.p_err, si.ng, es.p, es.p_err, es.ng);
+    sampler.count_ray();
     if scene.occluded(&shadow) {
         return None;
     }

@@ -15,6 +15,7 @@ pub fn li_explicit<S: Sampler>(
     settings: &PathSettings,
     sampler: &mut S,
 ) -> Rgb {
+    sampler.count_ray();
     let Some(hit) = scene.intersect(ray) else {
         return Rgb::ZERO;
     };
@@ -49,7 +50,7 @@ pub fn li_explicit_from_surface<S: Sampler>(
         let u_rr = sampler.next_1d();
 
         if bsdf.flags().is_non_specular() {
-            if let Some(d) = sample_direct(scene, &si, &bsdf, u_select, u_light) {
+            if let Some(d) = sample_direct(scene, &si, &bsdf, u_select, u_light, sampler) {
                 l += beta * d.contribution;
             }
         }
@@ -65,6 +66,7 @@ pub fn li_explicit_from_surface<S: Sampler>(
             break;
         }
         let next = si.spawn_ray(si.frame.to_world(bs.wi));
+        sampler.count_ray();
         let Some(hit) = scene.intersect(&next) else {
             break;
         };

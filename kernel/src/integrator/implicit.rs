@@ -13,6 +13,7 @@ pub fn li_implicit<S: Sampler>(
     settings: &PathSettings,
     sampler: &mut S,
 ) -> Rgb {
+    sampler.count_ray();
     let Some(hit) = scene.intersect(ray) else {
         return Rgb::ZERO;
     };
@@ -37,6 +38,7 @@ pub fn li_implicit<S: Sampler>(
             break;
         }
         let next = si.spawn_ray(si.frame.to_world(bs.wi));
+        sampler.count_ray();
         let Some(hit) = scene.intersect(&next) else {
             break;
         };

@@ -33,6 +33,7 @@ pub fn li_mis<S: Sampler>(
     settings: &PathSettings,
     sampler: &mut S,
 ) -> Rgb {
+    sampler.count_ray();
     let Some(hit) = scene.intersect(ray) else {
         return Rgb::ZERO;
     };
@@ -69,7 +70,7 @@ pub fn li_mis_from_surface<S: Sampler>(
         let non_specular = bsdf.flags().is_non_specular();
 
         if non_specular {
-            if let Some(d) = sample_direct(scene, &si, &bsdf, u_select, u_light) {
+            if let Some(d) = sample_direct(scene, &si, &bsdf, u_select, u_light, sampler) {
                 let pdf_bsdf = bsdf.pdf(si.wo, d.wi, TransportMode::Radiance);
                 l += beta * d.contribution * power_heuristic(d.pdf, pdf_bsdf);
             }
@@ -83,6 +84,7 @@ pub fn li_mis_from_surface<S: Sampler>(
         }
         let wi_world = si.frame.to_world(bs.wi);
         let next = si.spawn_ray(wi_world);
+        sampler.count_ray();
         let Some(hit) = scene.intersect(&next) else {
             break;
         };

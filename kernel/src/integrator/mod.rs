@@ -24,7 +24,7 @@ pub use mis::{li_mis, li_mis_from_surface, power_heuristic};
 
 use crate::camera::Camera;
 use crate::geometry::Ray;
-use crate::sampler::{IndependentSampler, Sampler};
+use crate::sampler::{IndependentSampler, RayCounting, Sampler};
 use crate::scene::SceneView;
 use crate::Rgb;
 use glam::Vec2;
@@ -122,6 +122,8 @@ pub struct PixelStats {
     pub sum_sq: Rgb,
     /// Samples that came out NaN or infinite; they are counted as 0 (and reported by hosts).
     pub invalid: u32,
+    /// Rays traced for these samples, closest-hit and shadow (for rays/s in benchmarks).
+    pub rays: u64,
 }
 
 impl PixelStats {
@@ -143,10 +145,11 @@ impl PixelStats {
 }
 
 /// Renders samples `first .. first + count` of pixel `(x, y)` and adds them, in sample order,
-/// to `stats`. Sample `i` is keyed by `(seed, y·width + x, i)`. Because each sample is added to
-/// the running sums in index order, rendering `0..n` in one call or in any sequence of
-/// consecutive ranges gives bit-identical sums: progressive and interrupted renders agree with
-/// one-shot renders, whatever the threads or tiles.
+/// to `stats`, with the number of rays they traced. Sample `i` is keyed by
+/// `(seed, y·width + x, i)`. Because each sample is added to the running sums in index order,
+/// rendering `0..n` in one call or in any sequence of consecutive ranges gives bit-identical
+/// sums: progressive and interrupted renders agree with one-shot renders, whatever the threads
+/// or tiles.
 #[must_use]
 pub fn render_pixel(
     integrator: Integrator,
@@ -162,9 +165,10 @@ pub fn render_pixel(
 ) -> PixelStats {
     let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
     for i in first..first + count {
-        let mut sampler = IndependentSampler::new(seed, pixel, i);
+        let mut sampler = RayCounting::new(IndependentSampler::new(seed, pixel, i));
         let ray = camera.generate_ray(x, y, sampler.next_2d());
         stats.add(li(integrator, scene, &ray, settings, &mut sampler));
+        stats.rays += u64::from(sampler.rays);
     }
     stats
 }

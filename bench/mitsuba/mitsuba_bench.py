@@ -1,0 +1,454 @@
+#!/usr/bin/env python3
+"""ember against Mitsuba 3 on the Cornell box: error against time, same machine, same run.
+
+Run through ./run.sh, which makes the virtual environment, installs Mitsuba and LLVM, and
+builds ember. Steps:
+
+1. Convert data/cornell-box (TOML camera, OBJ objects, MTL albedos and Ke) to a Mitsuba XML
+   scene: one OBJ per object, `diffuse` BSDFs, an `area` emitter on the light (one-sided, front
+   = normal side, as in ember), a `perspective` sensor (fov_axis "y", look_at eye/at/up), a
+   `box` pixel filter (ember's pixel sampling) and the `path` integrator with max_depth -1 and
+   rr_depth 5 (ember's maxDepth -1, rrDepth 5; Mitsuba's roulette survival is throughput
+   based, ember's is the scene's rrProb 0.95: same expectation, different variance per
+   sample).
+2. The reference: one long ember render with the `mis` integrator, made as SPLITS independent
+   renders with their own seeds and averaged (their spread gives its noise). Mitsuba's `path`
+   integrator is MIS path tracing (BSDF and emitter sampling, power heuristic), so ember's
+   `mis` integrator is the one compared.
+3. The same-image check: a long Mitsuba render (also SPLITS seeds) against the ember
+   reference, by image mean and 8x8 block means, z = difference / sqrt(sum of the two
+   variances), against the Student-t critical value at alpha = 0.01 shared by all tests
+   (Sidak). Printed; a failure is reported and makes the script exit 1 (after writing
+   everything), since comparing the speed of different images is meaningless.
+4. Mitsuba ladders (scalar_rgb and llvm_ad_rgb, THREADS threads): 1, 2, 4, ... spp with a new
+   seed per rung until a rung takes longer than the budget; each rung is timed around
+   mi.render (scene loading and one untimed warm-up render, which holds the LLVM
+   compilation, excluded) and compared with `ember compare` against the reference, so both
+   renderers' errors come from the same code. -> results.csv
+5. `ember bench` on the same scene, film, threads and reference with --integrators mis,
+   plotting Mitsuba's curves too. -> bench.csv, bench.svg
+6. For equal relative MSE, ember's time over Mitsuba's, interpolated in log-log. -> table.md
+"""
+import argparse
+import math
+import os
+import re
+import subprocess
+import sys
+import time
+import tomllib
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
+CSV_COLUMNS = "scene,integrator,spp,seconds,samples_per_second,rays_per_second,rmse,rel_mse,bias"
+
+
+def log(msg):
+    print(msg, flush=True)
+
+
+# ----------------------------------------------------------------------------- conversion
+def parse_mtl(path):
+    mats, cur = {}, None
+    with open(path) as fh:
+        for line in fh:
+            p = line.split()
+            if not p or p[0].startswith("#"):
+                continue
+            if p[0] == "newmtl":
+                cur = mats.setdefault(p[1], {"Kd": [0.0] * 3, "Ke": [0.0] * 3})
+            elif cur is not None and p[0] in ("Kd", "Ke"):
+                cur[p[0]] = [float(v) for v in p[1:4]]
+    return mats
+
+
+def split_obj(obj_path, out_dir):
+    """Writes one OBJ per object (`o`), vertices and normals re-indexed, face order and
+    winding kept. Returns [(object name, material, OBJ path)]."""
+    vs, vns, objects = [], [], []
+    mtllib, cur = None, None
+    with open(obj_path) as fh:
+        for line in fh:
+            p = line.split()
+            if not p:
+                continue
+            if p[0] == "v":
+                vs.append(p[1:4])
+            elif p[0] == "vn":
+                vns.append(p[1:4])
+            elif p[0] == "mtllib":
+                mtllib = p[1]
+            elif p[0] in ("o", "g"):
+                cur = {"name": p[1], "material": None, "faces": []}
+                objects.append(cur)
+            elif p[0] == "usemtl":
+                if cur is None:
+                    cur = {"name": "default", "material": None, "faces": []}
+                    objects.append(cur)
+                cur["material"] = p[1]
+            elif p[0] == "f":
+                corners = []
+                for tok in p[1:]:
+                    parts = tok.split("/")
+                    vi = int(parts[0])
+                    ni = int(parts[2]) if len(parts) > 2 and parts[2] else None
+                    if ni is None:
+                        sys.exit(f"{obj_path}: faces need normals (f v//vn)")
+                    vi = vi - 1 if vi > 0 else len(vs) + vi
+                    ni = ni - 1 if ni > 0 else len(vns) + ni
+                    corners.append((vi, ni))
+                cur["faces"].append(corners)
+    out = []
+    for o in objects:
+        if not o["faces"]:
+            continue
+        vmap, nmap, lines_v, lines_n, lines_f = {}, {}, [], [], []
+        for face in o["faces"]:
+            idx = []
+            for vi, ni in face:
+                if vi not in vmap:
+                    vmap[vi] = len(vmap) + 1
+                    lines_v.append("v " + " ".join(vs[vi]))
+                if ni not in nmap:
+                    nmap[ni] = len(nmap) + 1
+                    lines_n.append("vn " + " ".join(vns[ni]))
+                idx.append(f"{vmap[vi]}//{nmap[ni]}")
+            lines_f.append("f " + " ".join(idx))
+        path = os.path.join(out_dir, f"{o['name']}.obj")
+        with open(path, "w") as fh:
+            fh.write("\n".join([f"o {o['name']}"] + lines_v + lines_n + lines_f) + "\n")
+        out.append((o["name"], o["material"], path))
+    return out, mtllib
+
+
+def convert(toml_path, out_dir, size):
+    """The Mitsuba XML scene of a TinyRender path-traced scene; returns (xml path, settings)."""
+    with open(toml_path, "rb") as fh:
+        cfg = tomllib.load(fh)
+    base = os.path.dirname(os.path.abspath(toml_path))
+    obj = os.path.join(base, cfg["input"]["objfile"])
+    cam, ren = cfg["camera"], cfg["renderer"]
+    max_depth = int(ren.get("maxDepth", -1))
+    rr_depth = int(ren.get("rrDepth", 5))
+    os.makedirs(out_dir, exist_ok=True)
+    objects, mtllib = split_obj(obj, out_dir)
+    mats = parse_mtl(os.path.join(os.path.dirname(obj), mtllib))
+    vec = lambda v: ", ".join(repr(float(x)) for x in v)  # noqa: E731
+    rgb = lambda v: ", ".join(repr(float(x)) for x in v)  # noqa: E731
+    shapes = []
+    for name, mat, path in objects:
+        m = mats[mat]
+        emitter = ""
+        if any(c > 0 for c in m["Ke"]):
+            emitter = f'\n    <emitter type="area"><rgb name="radiance" value="{rgb(m["Ke"])}"/></emitter>'
+        shapes.append(
+            f"""  <shape type="obj" id="{name}">
+    <string name="filename" value="{os.path.basename(path)}"/>
+    <bsdf type="diffuse"><rgb name="reflectance" value="{rgb(m["Kd"])}"/></bsdf>{emitter}
+  </shape>"""
+        )
+    # Mitsuba counts the emitter vertex in max_depth (1 = emitters seen directly); TinyRender
+    # counts scattering vertices (0 = emitters seen directly). -1 is unbounded in both.
+    mi_depth = -1 if max_depth < 0 else max_depth + 1
+    xml = f"""<scene version="3.0.0">
+  <!-- Converted from {os.path.relpath(toml_path, ROOT)} by bench/mitsuba/mitsuba_bench.py -->
+  <integrator type="path">
+    <integer name="max_depth" value="{mi_depth}"/>
+    <integer name="rr_depth" value="{rr_depth}"/>
+  </integrator>
+  <sensor type="perspective">
+    <string name="fov_axis" value="y"/>
+    <float name="fov" value="{float(cam["fov"])!r}"/>
+    <transform name="to_world">
+      <lookat origin="{vec(cam["eye"])}" target="{vec(cam["at"])}" up="{vec(cam["up"])}"/>
+    </transform>
+    <sampler type="independent"><integer name="sample_count" value="1"/></sampler>
+    <film type="hdrfilm">
+      <integer name="width" value="{size}"/>
+      <integer name="height" value="{size}"/>
+      <rfilter type="box"/>
+      <string name="pixel_format" value="rgb"/>
+    </film>
+  </sensor>
+{chr(10).join(shapes)}
+</scene>
+"""
+    path = os.path.join(out_dir, "scene.xml")
+    with open(path, "w") as fh:
+        fh.write(xml)
+    return path, {"max_depth": max_depth, "rr_depth": rr_depth, "objects": len(objects)}
+
+
+# ----------------------------------------------------------------------------- statistics
+def t_critical(alpha, dof):
+    """Two-sided Student-t critical value: P(|T| > t) = alpha, by integrating the density."""
+    c = math.exp(math.lgamma((dof + 1) / 2) - math.lgamma(dof / 2)) / math.sqrt(dof * math.pi)
+    x = np.linspace(0.0, 60.0, 600_001)
+    pdf = c * (1 + x * x / dof) ** (-(dof + 1) / 2)
+    cdf = np.concatenate([[0.0], np.cumsum((pdf[1:] + pdf[:-1]) * 0.5 * (x[1] - x[0]))])
+    tail = 2 * (0.5 - cdf)
+    return float(x[np.argmax(tail < alpha)])
+
+
+def block_means(img, blocks):
+    h, w, _ = img.shape
+    return img.reshape(blocks, h // blocks, blocks, w // blocks, 3).mean(axis=(1, 3))
+
+
+def split_stats(splits, blocks):
+    """Mean image, block means and the variance of each block mean (and of the image mean)
+    from K independent equal renders."""
+    k = len(splits)
+    stack = np.stack(splits)
+    mean = stack.mean(axis=0)
+    b = np.stack([block_means(s, blocks) for s in splits])
+    m = np.stack([s.reshape(-1, 3).mean(axis=0) for s in splits])
+    return mean, b.mean(axis=0), b.var(axis=0, ddof=1) / k, m.mean(axis=0), m.var(axis=0, ddof=1) / k
+
+
+def rel_mse(a, b):
+    return float(np.mean((a - b) ** 2 / (b * b + 0.01)))
+
+
+# ----------------------------------------------------------------------------- rendering
+def read_exr(path):
+    import mitsuba as mi
+
+    return np.array(mi.Bitmap(path), dtype=np.float64)[:, :, :3]
+
+
+def write_exr(path, img):
+    import mitsuba as mi
+
+    mi.Bitmap(np.ascontiguousarray(img, dtype=np.float32)).write(path)
+
+
+def ember_compare(ember, image, reference):
+    out = subprocess.run([ember, "compare", image, reference], capture_output=True, text=True)
+    if out.returncode != 0:
+        sys.exit(f"ember compare failed: {out.stderr}")
+    vals = {}
+    for line in out.stdout.splitlines():
+        m = re.match(r"(rmse|rel_mse|bias)\s+([-+0-9.eE]+)", line)
+        if m:
+            vals[m.group(1)] = float(m.group(2))
+    return vals
+
+
+def set_variant(variant, threads):
+    import mitsuba as mi
+
+    mi.set_variant(variant)
+    import drjit as dr
+
+    dr.set_thread_count(threads)
+    return mi, dr
+
+
+def mitsuba_render(mi, dr, scene, spp, seed):
+    img = mi.render(scene, spp=spp, seed=seed)
+    arr = np.array(img, dtype=np.float64)  # forces evaluation (LLVM) and copies out
+    return arr[:, :, :3]
+
+
+def ladder(label, render, budget, max_spp, reference_path, ember, build, scene_name, pixels):
+    rows, spp, rung = [], 1, 0
+    while True:
+        t0 = time.perf_counter()
+        img = render(spp, 1 + rung)
+        seconds = time.perf_counter() - t0
+        path = os.path.join(build, f"{label}_{spp}spp.exr")
+        write_exr(path, img)
+        m = ember_compare(ember, path, reference_path)
+        row = dict(
+            scene=scene_name, integrator=label, spp=spp, seconds=seconds,
+            samples_per_second=pixels * spp / seconds, rays_per_second=float("nan"),
+            rmse=m["rmse"], rel_mse=m["rel_mse"], bias=m["bias"],
+        )
+        log(f"  {label:<22} {spp:>6} spp {seconds:9.3f} s  {row['samples_per_second'] / 1e6:7.3f} Msamples/s"
+            f"  rel_mse {row['rel_mse']:.4e}")
+        rows.append(row)
+        if seconds > budget or spp > max_spp // 2:
+            return rows
+        spp *= 2
+        rung += 1
+
+
+def interp_time(points, target):
+    """Time to reach relative MSE `target` on a curve of (seconds, rel_mse) points, linear in
+    log-log between the two rungs around it; None outside the curve."""
+    pts = sorted(points, key=lambda p: p[0])
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+        lo, hi = min(e0, e1), max(e0, e1)
+        if lo <= target <= hi and e0 != e1:
+            f = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
+            return math.exp(math.log(t0) + f * (math.log(t1) - math.log(t0)))
+    return None
+
+
+# ----------------------------------------------------------------------------- main
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--ember", required=True, help="the ember binary")
+    ap.add_argument("--scene", default=os.path.join(ROOT, "data/cornell-box/cornell_box.toml"))
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--ref-spp", type=int, default=4096, help="ember reference spp (total)")
+    ap.add_argument("--mitsuba-ref-spp", type=int, default=4096, help="long Mitsuba render spp (total)")
+    ap.add_argument("--splits", type=int, default=16, help="independent renders per long render")
+    ap.add_argument("--budget", type=float, default=10.0, help="seconds: a ladder stops after the first slower rung")
+    ap.add_argument("--max-spp", type=int, default=65536)
+    ap.add_argument("--variants", default="scalar_rgb,llvm_ad_rgb")
+    ap.add_argument("--out", default=HERE)
+    args = ap.parse_args()
+
+    build = os.path.join(args.out, "build")
+    os.makedirs(build, exist_ok=True)
+    scene_name = os.path.splitext(os.path.basename(args.scene))[0]
+    pixels = args.size * args.size
+    blocks = 8
+    k = args.splits
+    if args.size % blocks or args.ref_spp % k or args.mitsuba_ref_spp % k:
+        sys.exit("--size must be a multiple of 8 and the reference spp multiples of --splits")
+    report = []
+
+    def say(line=""):
+        log(line)
+        report.append(line)
+
+    xml, info = convert(args.scene, build, args.size)
+    say(f"# ember vs Mitsuba 3: {scene_name}, {args.size}x{args.size}, {args.threads} threads")
+    say()
+    say(f"Scene converted to {os.path.relpath(xml, args.out)} ({info['objects']} objects, "
+        f"maxDepth {info['max_depth']}, rrDepth {info['rr_depth']}). Mitsuba's `path` integrator is MIS "
+        "path tracing, so it is compared with ember's `mis` integrator.")
+
+    # 2. The ember reference, as K independent renders.
+    log(f"\n== ember reference: mis, {args.ref_spp} spp as {k} renders of {args.ref_spp // k} spp")
+    t0 = time.perf_counter()
+    splits = []
+    for i in range(k):
+        p = os.path.join(build, f"ember_ref_{i}.exr")
+        subprocess.run(
+            [args.ember, "render", args.scene, "--integrator", "mis", "--spp", str(args.ref_spp // k),
+             "--seed", str(1000 + i), "--width", str(args.size), "--height", str(args.size),
+             "--threads", str(args.threads), "-q", "-o", p],
+            check=True, stderr=subprocess.DEVNULL)
+        splits.append(read_exr(p))
+    ref_seconds = time.perf_counter() - t0
+    ref, ref_blocks, ref_bvar, ref_mean, ref_mvar = split_stats(splits, blocks)
+    reference_path = os.path.join(build, "reference.exr")
+    write_exr(reference_path, ref)
+    half = k // 2
+    ref_noise = rel_mse(np.mean(splits[:half], axis=0), np.mean(splits[half:], axis=0)) / 4
+    say(f"\nReference: ember `mis`, {args.ref_spp} spp ({k} seeds x {args.ref_spp // k} spp), {ref_seconds:.0f} s; "
+        f"its own noise, relMSE(half A, half B)/4 = {ref_noise:.3e}.")
+
+    # 3. The long Mitsuba render and the same-image check.
+    log(f"\n== Mitsuba long render: llvm_ad_rgb, {args.mitsuba_ref_spp} spp as {k} renders")
+    variants = args.variants.split(",")
+    long_variant = "llvm_ad_rgb" if "llvm_ad_rgb" in variants else variants[0]
+    mi, dr = set_variant(long_variant, args.threads)
+    scene = mi.load_file(xml)
+    # Emitters are one-sided in both renderers (front = normal side): check that Mitsuba's OBJ
+    # loader kept the winding, i.e. its face normals agree with the OBJ's vn.
+    for shape in scene.shapes():
+        if shape.is_emitter():
+            ng = np.array([np.array(shape.face_normal(i), dtype=np.float64).ravel()
+                           for i in range(shape.face_count())])
+            vn = np.array(mi.traverse(shape)["vertex_normals"]).reshape(-1, 3)
+            agree = bool(np.all(ng @ vn.mean(axis=0) > 0.99))
+            say(f"\nEmitter `{shape.id()}` in Mitsuba: face normals {', '.join('(' + ', '.join(f'{c:g}' for c in v) + ')' for v in np.unique(ng.round(3) + 0.0, axis=0))}, "
+                f"vertex normals {'agree' if agree else 'DISAGREE'} (one-sided emission faces the same way as in ember).")
+            if not agree:
+                sys.exit("error: Mitsuba's emitter faces the other way than ember's")
+    msplits = [mitsuba_render(mi, dr, scene, args.mitsuba_ref_spp // k, 10_000 + i) for i in range(k)]
+    mlong, m_blocks, m_bvar, m_mean, m_mvar = split_stats(msplits, blocks)
+    write_exr(os.path.join(build, "mitsuba_long.exr"), mlong)
+    tests = blocks * blocks * 3 + 3
+    alpha = 1 - (1 - 0.01) ** (1 / tests)
+    crit = t_critical(alpha, k - 1)
+    z_mean = (m_mean - ref_mean) / np.sqrt(m_mvar + ref_mvar)
+    z_blocks = (m_blocks - ref_blocks) / np.sqrt(m_bvar + ref_bvar)
+    worst = np.unravel_index(np.argmax(np.abs(z_blocks)), z_blocks.shape)
+    ok = bool(np.all(np.abs(z_mean) < crit) and np.all(np.abs(z_blocks) < crit))
+    say("\n## Same image?\n")
+    say(f"Mitsuba {long_variant} {args.mitsuba_ref_spp} spp against the ember reference; variances from the "
+        f"{k} independent renders of each; critical |t| = {crit:.2f} (alpha 0.01 over {tests} tests, {k - 1} dof).")
+    say()
+    say(f"- image mean: Mitsuba ({', '.join(f'{v:.5f}' for v in m_mean)}), "
+        f"ember ({', '.join(f'{v:.5f}' for v in ref_mean)}), z ({', '.join(f'{v:+.2f}' for v in z_mean)})")
+    say(f"- 8x8 block means: max |z| = {np.abs(z_blocks).max():.2f} at block (row {worst[0]}, col {worst[1]}, "
+        f"channel {worst[2]}); mean z^2 = {np.mean(z_blocks ** 2):.2f} (1 expected); "
+        f"relative difference of block means: max {np.max(np.abs(m_blocks - ref_blocks) / np.maximum(ref_blocks, 1e-3)):.2%}")
+    say(f"- verdict: {'SAME IMAGE within noise' if ok else 'DIFFERENT IMAGES: the timing comparison below is not valid'}")
+
+    # 4. Mitsuba ladders.
+    rows = []
+    for variant in variants:
+        log(f"\n== Mitsuba ladder: {variant}, {args.threads} threads")
+        mi, dr = set_variant(variant, args.threads)
+        scene = mi.load_file(xml)
+        mitsuba_render(mi, dr, scene, 1, 999_999)  # warm-up (LLVM compiles its kernels here)
+        label = f"mitsuba_{variant}"
+        rows += ladder(label, lambda spp, seed: mitsuba_render(mi, dr, scene, spp, seed), args.budget,
+                       args.max_spp, reference_path, args.ember, build, scene_name, pixels)
+    results = os.path.join(args.out, "results.csv")
+    with open(results, "w") as fh:
+        fh.write(CSV_COLUMNS + "\n")
+        for r in rows:
+            fh.write(f"{r['scene']},{r['integrator']},{r['spp']},{r['seconds']:.6f},{r['samples_per_second']:.1f},"
+                     f"nan,{r['rmse']:.6e},{r['rel_mse']:.6e},{r['bias']:.6e}\n")
+    log(f"wrote {results}")
+
+    # 5. ember's ladder against the same reference, plotted with Mitsuba's.
+    log(f"\n== ember bench: mis, {args.threads} threads")
+    subprocess.run(
+        [args.ember, "bench", args.scene, "--reference", reference_path, "--integrators", "mis",
+         "--threads", str(args.threads), "--budget", str(args.budget), "--max-spp", str(args.max_spp),
+         "--plot-also", results, "-o", args.out],
+        check=True)
+    ember_rows = []
+    with open(os.path.join(args.out, "bench.csv")) as fh:
+        header = fh.readline().strip().split(",")
+        for line in fh:
+            ember_rows.append(dict(zip(header, line.strip().split(","))))
+    ember_pts = [(float(r["seconds"]), float(r["rel_mse"])) for r in ember_rows]
+
+    # 6. Time ratios at equal error.
+    say("\n## Time to equal relative MSE\n")
+    say("ember `mis` time / Mitsuba time, interpolated linearly in log-log between ladder rungs "
+        "(below 1: ember is faster). Every relative MSE includes the reference's own noise "
+        f"({ref_noise:.1e}), so only errors above 10 times that are listed.")
+    say()
+    say("| relative MSE | ember mis (s) | " + " | ".join(f"{v} (s) | ratio" for v in variants) + " |")
+    say("|---|---|" + "---|---|" * len(variants))
+    curves = {v: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == f"mitsuba_{v}"] for v in variants}
+    lo = max([min(e for _, e in ember_pts), 10 * ref_noise] + [min(e for _, e in c) for c in curves.values()])
+    hi = min([max(e for _, e in ember_pts)] + [max(e for _, e in c) for c in curves.values()])
+    targets = []
+    if lo < hi:
+        n = 6
+        targets = [math.exp(math.log(hi) + (math.log(lo) - math.log(hi)) * i / (n - 1)) for i in range(n)]
+    for target in targets:
+        te = interp_time(ember_pts, target)
+        cells = [f"{te:.3f}" if te else "-"]
+        for v in variants:
+            tm = interp_time(curves[v], target)
+            cells += [f"{tm:.3f}", f"{te / tm:.2f}"] if te and tm else ["-", "-"]
+        say(f"| {target:.3e} | " + " | ".join(cells) + " |")
+    say()
+    say(f"Measured {time.strftime('%Y-%m-%d %H:%M')} on {os.cpu_count()} cores; ladders stop after the first rung "
+        f"over {args.budget} s. Curves: bench.svg; rows: bench.csv (ember), results.csv (Mitsuba).")
+    with open(os.path.join(args.out, "table.md"), "w") as fh:
+        fh.write("\n".join(report) + "\n")
+    log(f"wrote {os.path.join(args.out, 'table.md')}")
+    if not ok:
+        log("error: Mitsuba and ember do not converge to the same image (see above)")
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,305 @@
+/*
+ * A C program that embeds ember through its C API (kernel/include/ember.h, libember_capi.a).
+ * It loads nothing from disk: it builds the small Cornell box of the determinism checks
+ * (tests/determinism/src/lib.rs, same literal quads and materials) in arrays, builds the BVH
+ * and the emitter table into its own buffers, renders the box with each path integrator from
+ * two threads (pthreads, the top and bottom halves, each in 8x8 tiles), bakes a few points,
+ * checks that bad input gets error codes, and prints the FNV-1a hashes of the pixels and of the
+ * baked values. With an argument it also writes every array and result to that file
+ * (raw little-endian), which tests/tests/capi.rs compares bit for bit with the Rust API's.
+ *
+ *   cc -std=c11 -O2 -pthread -I kernel/include tests/capi/cornell.c libember_capi.a \
+ *      -lpthread -ldl -lm -o cornell && ./cornell [OUT.bin]
+ */
+#include "ember.h"
+
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define WIDTH 32
+#define HEIGHT 32
+#define TILE 8
+#define NQUADS 16
+#define NVERTICES (4 * NQUADS)
+#define NTRIANGLES (2 * NQUADS)
+#define NPOINTS 8
+
+typedef struct Quad {
+    float corners[4][3];
+    float normal[3];
+    uint32_t material;
+} Quad;
+
+/* The room, the light, a short mixture box and a tall Phong box (tests/determinism). */
+static const Quad QUADS[NQUADS] = {
+    {{{-1.0f, 0.0f, 1.0f}, {1.0f, 0.0f, 1.0f}, {1.0f, 0.0f, -1.0f}, {-1.0f, 0.0f, -1.0f}}, {0.0f, 1.0f, 0.0f}, 0},
+    {{{-1.0f, 2.0f, -1.0f}, {1.0f, 2.0f, -1.0f}, {1.0f, 2.0f, 1.0f}, {-1.0f, 2.0f, 1.0f}}, {0.0f, -1.0f, 0.0f}, 0},
+    {{{-1.0f, 0.0f, -1.0f}, {1.0f, 0.0f, -1.0f}, {1.0f, 2.0f, -1.0f}, {-1.0f, 2.0f, -1.0f}}, {0.0f, 0.0f, 1.0f}, 0},
+    {{{-1.0f, 0.0f, 1.0f}, {-1.0f, 0.0f, -1.0f}, {-1.0f, 2.0f, -1.0f}, {-1.0f, 2.0f, 1.0f}}, {1.0f, 0.0f, 0.0f}, 1},
+    {{{1.0f, 0.0f, -1.0f}, {1.0f, 0.0f, 1.0f}, {1.0f, 2.0f, 1.0f}, {1.0f, 2.0f, -1.0f}}, {-1.0f, 0.0f, 0.0f}, 2},
+    {{{-0.25f, 1.98f, -0.25f}, {0.25f, 1.98f, -0.25f}, {0.25f, 1.98f, 0.25f}, {-0.25f, 1.98f, 0.25f}}, {0.0f, -1.0f, 0.0f}, 3},
+    {{{-0.75f, 0.6f, 0.4f}, {-0.15f, 0.6f, 0.4f}, {-0.15f, 0.6f, -0.2f}, {-0.75f, 0.6f, -0.2f}}, {0.0f, 1.0f, 0.0f}, 5},
+    {{{-0.75f, 0.0f, 0.4f}, {-0.15f, 0.0f, 0.4f}, {-0.15f, 0.6f, 0.4f}, {-0.75f, 0.6f, 0.4f}}, {0.0f, 0.0f, 1.0f}, 5},
+    {{{-0.15f, 0.0f, -0.2f}, {-0.75f, 0.0f, -0.2f}, {-0.75f, 0.6f, -0.2f}, {-0.15f, 0.6f, -0.2f}}, {0.0f, 0.0f, -1.0f}, 5},
+    {{{-0.75f, 0.0f, -0.2f}, {-0.75f, 0.0f, 0.4f}, {-0.75f, 0.6f, 0.4f}, {-0.75f, 0.6f, -0.2f}}, {-1.0f, 0.0f, 0.0f}, 5},
+    {{{-0.15f, 0.0f, 0.4f}, {-0.15f, 0.0f, -0.2f}, {-0.15f, 0.6f, -0.2f}, {-0.15f, 0.6f, 0.4f}}, {1.0f, 0.0f, 0.0f}, 5},
+    {{{0.1f, 1.2f, -0.1f}, {0.7f, 1.2f, -0.1f}, {0.7f, 1.2f, -0.7f}, {0.1f, 1.2f, -0.7f}}, {0.0f, 1.0f, 0.0f}, 4},
+    {{{0.1f, 0.0f, -0.1f}, {0.7f, 0.0f, -0.1f}, {0.7f, 1.2f, -0.1f}, {0.1f, 1.2f, -0.1f}}, {0.0f, 0.0f, 1.0f}, 4},
+    {{{0.7f, 0.0f, -0.7f}, {0.1f, 0.0f, -0.7f}, {0.1f, 1.2f, -0.7f}, {0.7f, 1.2f, -0.7f}}, {0.0f, 0.0f, -1.0f}, 4},
+    {{{0.1f, 0.0f, -0.7f}, {0.1f, 0.0f, -0.1f}, {0.1f, 1.2f, -0.1f}, {0.1f, 1.2f, -0.7f}}, {-1.0f, 0.0f, 0.0f}, 4},
+    {{{0.7f, 0.0f, -0.1f}, {0.7f, 0.0f, -0.7f}, {0.7f, 1.2f, -0.7f}, {0.7f, 1.2f, -0.1f}}, {1.0f, 0.0f, 0.0f}, 4},
+};
+
+static const EmberMaterial MATERIALS[6] = {
+    {EMBER_MATERIAL_DIFFUSE, {0.725f, 0.71f, 0.68f}, {0.0f, 0.0f, 0.0f}, 1.0f, {0.0f, 0.0f, 0.0f}},
+    {EMBER_MATERIAL_DIFFUSE, {0.63f, 0.065f, 0.05f}, {0.0f, 0.0f, 0.0f}, 1.0f, {0.0f, 0.0f, 0.0f}},
+    {EMBER_MATERIAL_DIFFUSE, {0.14f, 0.45f, 0.091f}, {0.0f, 0.0f, 0.0f}, 1.0f, {0.0f, 0.0f, 0.0f}},
+    {EMBER_MATERIAL_DIFFUSE, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f, {17.0f, 12.0f, 4.0f}},
+    {EMBER_MATERIAL_PHONG, {0.1f, 0.1f, 0.1f}, {0.7f, 0.7f, 0.7f}, 40.0f, {0.0f, 0.0f, 0.0f}},
+    {EMBER_MATERIAL_MIXTURE, {0.5f, 0.4f, 0.3f}, {0.3f, 0.3f, 0.3f}, 15.0f, {0.0f, 0.0f, 0.0f}},
+};
+
+static const EmberBakePoint POINTS[NPOINTS] = {
+    {{0.0f, 0.0f, 0.7f}, {0.0f, 1.0f, 0.0f}, 0, 0},
+    {{0.0f, 1.0f, -1.0f}, {0.0f, 0.0f, 1.0f}, 0, 1},
+    {{-1.0f, 1.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, 1, 2},
+    {{1.0f, 1.0f, 0.0f}, {-1.0f, 0.0f, 0.0f}, 2, 3},
+    {{0.6f, 2.0f, 0.6f}, {0.0f, -1.0f, 0.0f}, 0, 4},
+    {{0.4f, 1.2f, -0.4f}, {0.0f, 1.0f, 0.0f}, 4, 5},
+    {{-0.45f, 0.6f, 0.1f}, {0.0f, 1.0f, 0.0f}, 5, 6},
+    {{-1.0f, 0.0f, -1.0f}, {0.0f, 1.0f, 0.0f}, 0, 7},
+};
+
+/* 0x656D626572: "ember", the command line's default seed. */
+#define SEED 0x656D626572ull
+
+static const EmberCamera CAMERA = {
+    {0.0f, 1.0f, 3.4f}, {0.0f, 1.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 40.0f, WIDTH, HEIGHT};
+
+static float positions[NVERTICES][3];
+static float normals[NVERTICES][3];
+static uint32_t triangles[NTRIANGLES][3];
+static uint32_t triangle_materials[NTRIANGLES];
+
+#define CHECK(call)                                                                         \
+    do {                                                                                    \
+        int32_t status_ = (call);                                                           \
+        if (status_ != EMBER_OK) {                                                          \
+            fprintf(stderr, "cornell: %s failed with %d (line %d)\n", #call, status_,       \
+                    __LINE__);                                                              \
+            exit(1);                                                                        \
+        }                                                                                   \
+    } while (0)
+
+#define EXPECT(call, code)                                                                  \
+    do {                                                                                    \
+        int32_t status_ = (call);                                                           \
+        if (status_ != (code)) {                                                            \
+            fprintf(stderr, "cornell: %s returned %d, expected %s\n", #call, status_, #code); \
+            exit(1);                                                                        \
+        }                                                                                   \
+    } while (0)
+
+typedef struct Job {
+    const EmberScene *scene;
+    const EmberSettings *settings;
+    float *image; /* WIDTH * HEIGHT * 3 */
+    uint32_t y0, y1;
+    int32_t status;
+} Job;
+
+/* Renders rows y0 .. y1 in TILE x TILE tiles and copies each into the image. */
+static void *render_rows(void *arg) {
+    Job *job = arg;
+    float tile[TILE * TILE * 3];
+    job->status = EMBER_OK;
+    for (uint32_t ty = job->y0; ty < job->y1; ty += TILE) {
+        for (uint32_t tx = 0; tx < WIDTH; tx += TILE) {
+            uint32_t w = WIDTH - tx < TILE ? WIDTH - tx : TILE;
+            uint32_t h = job->y1 - ty < TILE ? job->y1 - ty : TILE;
+            int32_t s = ember_render_tile(job->scene, &CAMERA, job->settings, tx, ty, w, h, tile);
+            if (s != EMBER_OK) {
+                job->status = s;
+                return NULL;
+            }
+            for (uint32_t y = 0; y < h; y++) {
+                memcpy(&job->image[((ty + y) * WIDTH + tx) * 3], &tile[y * w * 3],
+                       w * 3 * sizeof(float));
+            }
+        }
+    }
+    return NULL;
+}
+
+/* 64-bit FNV-1a over the little-endian bytes of each float (tests/determinism's hash). */
+static uint64_t fnv1a(uint64_t h, const float *values, size_t n) {
+    for (size_t i = 0; i < n; i++) {
+        uint32_t bits;
+        memcpy(&bits, &values[i], sizeof bits);
+        for (int b = 0; b < 4; b++) {
+            h ^= (bits >> (8 * b)) & 0xffu;
+            h *= 0x100000001b3ull;
+        }
+    }
+    return h;
+}
+
+static void write_all(FILE *f, const void *data, size_t bytes) {
+    if (bytes > 0 && fwrite(data, 1, bytes, f) != bytes) {
+        fprintf(stderr, "cornell: write failed\n");
+        exit(1);
+    }
+}
+
+static void write_u32(FILE *f, uint32_t v) { write_all(f, &v, sizeof v); }
+
+int main(int argc, char **argv) {
+    for (uint32_t q = 0; q < NQUADS; q++) {
+        for (uint32_t c = 0; c < 4; c++) {
+            memcpy(positions[4 * q + c], QUADS[q].corners[c], sizeof positions[0]);
+            memcpy(normals[4 * q + c], QUADS[q].normal, sizeof normals[0]);
+        }
+        uint32_t v = 4 * q;
+        uint32_t t0[3] = {v, v + 1, v + 2}, t1[3] = {v, v + 2, v + 3};
+        memcpy(triangles[2 * q], t0, sizeof t0);
+        memcpy(triangles[2 * q + 1], t1, sizeof t1);
+        triangle_materials[2 * q] = triangle_materials[2 * q + 1] = QUADS[q].material;
+    }
+
+    EmberScene scene;
+    memset(&scene, 0, sizeof scene);
+    scene.positions = (const float(*)[3])positions;
+    scene.normals = (const float(*)[3])normals;
+    scene.vertex_count = NVERTICES;
+    scene.triangles = (const uint32_t(*)[3])triangles;
+    scene.triangle_materials = triangle_materials;
+    scene.triangle_count = NTRIANGLES;
+    scene.materials = MATERIALS;
+    scene.material_count = 6;
+
+    /* The BVH, in buffers sized by the query. */
+    uint32_t node_capacity = 0, index_capacity = 0, node_count = 0;
+    CHECK(ember_bvh_capacity(NTRIANGLES, &node_capacity, &index_capacity));
+    EmberBvhNode *nodes = calloc(node_capacity, sizeof *nodes);
+    uint32_t *indices = calloc(index_capacity, sizeof *indices);
+    if (!nodes || !indices) return 1;
+    EXPECT(ember_build_bvh(&scene, nodes, node_capacity - 1, indices, index_capacity, NULL),
+           EMBER_ERROR_SIZE);
+    CHECK(ember_build_bvh(&scene, nodes, node_capacity, indices, index_capacity, &node_count));
+
+    /* The emitter table: ask for its size, then fill it. */
+    uint32_t emitter_count = 0;
+    EXPECT(ember_build_emitters(&scene, NULL, NULL, 0, &emitter_count), EMBER_ERROR_SIZE);
+    uint32_t *emitter_triangles = calloc(emitter_count, sizeof *emitter_triangles);
+    float *emitter_cdf = calloc(emitter_count, sizeof *emitter_cdf);
+    if (!emitter_triangles || !emitter_cdf) return 1;
+    CHECK(ember_build_emitters(&scene, emitter_triangles, emitter_cdf, emitter_count,
+                               &emitter_count));
+
+    scene.emitter_triangles = emitter_triangles;
+    scene.emitter_cdf = emitter_cdf;
+    scene.emitter_count = emitter_count;
+    scene.bvh_nodes = nodes;
+    scene.bvh_node_count = node_count;
+    scene.bvh_indices = indices;
+    CHECK(ember_scene_check(&scene));
+
+    /* Three renders, each by two threads. */
+    static float images[3][WIDTH * HEIGHT * 3];
+    EmberSettings settings = {EMBER_INTEGRATOR_PATH_IMPLICIT, -1, 3, 0.9f, 4, EMBER_BAKE_MIS, SEED};
+    const uint32_t integrators[3] = {EMBER_INTEGRATOR_PATH_IMPLICIT,
+                                     EMBER_INTEGRATOR_PATH_EXPLICIT, EMBER_INTEGRATOR_PATH_MIS};
+    for (int k = 0; k < 3; k++) {
+        settings.integrator = integrators[k];
+        Job jobs[2] = {{&scene, &settings, images[k], 0, HEIGHT / 2, 0},
+                       {&scene, &settings, images[k], HEIGHT / 2, HEIGHT, 0}};
+        pthread_t threads[2];
+        for (int t = 0; t < 2; t++) {
+            if (pthread_create(&threads[t], NULL, render_rows, &jobs[t]) != 0) {
+                fprintf(stderr, "cornell: pthread_create failed\n");
+                return 1;
+            }
+        }
+        for (int t = 0; t < 2; t++) {
+            pthread_join(threads[t], NULL);
+            CHECK(jobs[t].status);
+        }
+    }
+
+    /* The bake, both estimators; the points in two batches (keys make batching irrelevant). */
+    static float bakes[2][NPOINTS * 3];
+    EmberSettings bake = {EMBER_INTEGRATOR_PATH_MIS, 5, 5, 0.95f, 16, EMBER_BAKE_MIS, SEED};
+    const uint32_t estimators[2] = {EMBER_BAKE_MIS, EMBER_BAKE_EXPLICIT};
+    for (int k = 0; k < 2; k++) {
+        bake.bake_estimator = estimators[k];
+        CHECK(ember_bake_vertices(&scene, &bake, POINTS, 3, bakes[k]));
+        CHECK(ember_bake_vertices(&scene, &bake, POINTS + 3, NPOINTS - 3, bakes[k] + 9));
+    }
+
+    /* Bad input gets error codes, never a crash. */
+    float px[3];
+    EXPECT(ember_render_tile(NULL, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_NULL_POINTER);
+    EXPECT(ember_render_tile(&scene, &CAMERA, &settings, WIDTH - 1, 0, 2, 1, px),
+           EMBER_ERROR_INVALID_ARGUMENT);
+    EXPECT(ember_render_tile(&scene, &CAMERA, &settings, 0, 0, 1, 1, NULL),
+           EMBER_ERROR_NULL_POINTER);
+    EmberSettings bad_settings = settings;
+    bad_settings.integrator = 7;
+    EXPECT(ember_render_tile(&scene, &CAMERA, &bad_settings, 0, 0, 1, 1, px),
+           EMBER_ERROR_INVALID_ARGUMENT);
+    EmberScene bad = scene;
+    bad.material_count = 3; /* triangles refer to materials 3 to 5 */
+    EXPECT(ember_render_tile(&bad, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_INVALID_SCENE);
+    bad = scene;
+    bad.bvh_node_count = 1; /* the root's children are missing */
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
+    bad = scene;
+    bad.emitter_cdf = NULL;
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_NULL_POINTER);
+    EmberBakePoint bad_point = POINTS[0];
+    bad_point.material = 6;
+    EXPECT(ember_bake_vertices(&scene, &bake, &bad_point, 1, px), EMBER_ERROR_INVALID_ARGUMENT);
+
+    uint64_t render_hash = 0xcbf29ce484222325ull;
+    for (int k = 0; k < 3; k++) render_hash = fnv1a(render_hash, images[k], WIDTH * HEIGHT * 3);
+    uint64_t bake_hash = 0xcbf29ce484222325ull;
+    for (int k = 0; k < 2; k++) bake_hash = fnv1a(bake_hash, bakes[k], NPOINTS * 3);
+    printf("render %016llx\nbake %016llx\n", (unsigned long long)render_hash,
+           (unsigned long long)bake_hash);
+
+    if (argc > 1) {
+        FILE *f = fopen(argv[1], "wb");
+        if (!f) {
+            perror(argv[1]);
+            return 1;
+        }
+        write_u32(f, NVERTICES);
+        write_all(f, positions, sizeof positions);
+        write_all(f, normals, sizeof normals);
+        write_u32(f, NTRIANGLES);
+        write_all(f, triangles, sizeof triangles);
+        write_all(f, triangle_materials, sizeof triangle_materials);
+        write_u32(f, emitter_count);
+        write_all(f, emitter_triangles, emitter_count * sizeof *emitter_triangles);
+        write_all(f, emitter_cdf, emitter_count * sizeof *emitter_cdf);
+        write_u32(f, node_count);
+        write_all(f, nodes, node_count * sizeof *nodes);
+        write_all(f, indices, NTRIANGLES * sizeof *indices);
+        write_u32(f, WIDTH);
+        write_u32(f, HEIGHT);
+        write_all(f, images, sizeof images);
+        write_u32(f, NPOINTS);
+        write_all(f, bakes, sizeof bakes);
+        if (fclose(f) != 0) {
+            perror(argv[1]);
+            return 1;
+        }
+    }
+    free(nodes);
+    free(indices);
+    free(emitter_triangles);
+    free(emitter_cdf);
+    return 0;
+}
