@@ -39,3 +39,5 @@ echo "== cargo clippy"
 cargo clippy --workspace --all-targets --release -- -D warnings
 echo "== cargo test (release: the statistical tests run too)"
 cargo test --workspace --release
+echo "== determinism across builds and targets (scripts/determinism.sh)"
+./scripts/determinism.sh
