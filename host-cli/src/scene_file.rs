@@ -6,6 +6,7 @@
 //! because a silently ignored setting is worse than a refused file. Unknown keys are ignored.
 
 use crate::error::{Error, Result};
+use crate::mesh::quote;
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
@@ -63,9 +64,25 @@ impl SceneFile {
     /// Unreadable file, TOML syntax error (with line and column), missing table or key, wrong
     /// type or out-of-range value, unknown or unsupported renderer type.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
+        let bytes = std::fs::read(path)
             .map_err(|e| Error::in_file(path, format!("cannot read scene file: {e}")))?;
-        Self::parse(path, &text)
+        Self::parse_bytes(path, &bytes)
+    }
+
+    /// Parses the bytes of a scene file (what [`SceneFile::load`] reads), refusing text that
+    /// is not UTF-8 with the line of the first bad byte.
+    ///
+    /// # Errors
+    /// As [`SceneFile::load`].
+    pub fn parse_bytes(path: &Path, bytes: &[u8]) -> Result<Self> {
+        let text = std::str::from_utf8(bytes).map_err(|e| {
+            let (line, col) = line_col(bytes, e.valid_up_to());
+            Error::in_file(
+                path,
+                format!("not UTF-8 text (invalid byte at line {line}, column {col})"),
+            )
+        })?;
+        Self::parse(path, text)
     }
 
     /// Parses scene text; `path` names the file in errors and anchors the relative `objfile`.
@@ -77,18 +94,17 @@ impl SceneFile {
             let at = e
                 .span()
                 .map(|s| {
-                    let (line, col) = line_col(text, s.start);
+                    let (line, col) = line_col(text.as_bytes(), s.start);
                     format!(" at line {line}, column {col}")
                 })
                 .unwrap_or_default();
-            Error::in_file(
-                path,
-                format!("TOML syntax error{at}: {}", e.message().trim_end()),
-            )
+            // One line, whatever the parser's message holds.
+            let message = e.message().trim_end().replace('\n', "; ");
+            Error::in_file(path, format!("TOML syntax error{at}: {message}"))
         })?;
         let keys = Keys { path, root: &root };
         let input = keys.table("input")?;
-        let camera = keys.table("camera")?;
+        let camera_table = keys.table("camera")?;
         let film = keys.table("film")?;
         let renderer = keys.table("renderer")?;
 
@@ -100,28 +116,49 @@ impl SceneFile {
         let dir = path.parent().unwrap_or(Path::new("."));
         let objfile = dir.join(objfile);
 
+        let eye = keys.vec3(camera_table, "camera", "eye", [1.0, 1.0, 0.0])?;
+        let at = keys.vec3(camera_table, "camera", "at", [0.0, 0.0, 0.0])?;
+        let up = keys.vec3(camera_table, "camera", "up", [0.0, 1.0, 0.0])?;
+        // Kept as written for messages (the f32 may round it to 0 or 180).
+        let fov = keys.number(camera_table, "camera", "fov", 30.0)?;
         let camera = CameraDesc {
-            eye: keys.vec3(camera, "camera", "eye", [1.0, 1.0, 0.0])?,
-            at: keys.vec3(camera, "camera", "at", [0.0, 0.0, 0.0])?,
-            up: keys.vec3(camera, "camera", "up", [0.0, 1.0, 0.0])?,
-            fov: keys.number(camera, "camera", "fov", 30.0)? as f32,
+            eye,
+            at,
+            up,
+            fov: fov as f32,
         };
         if !(camera.fov > 0.0 && camera.fov < 180.0) {
             return Err(Error::in_file(
                 path,
                 format!(
                     "[camera].fov = {} is out of range (0, 180) degrees",
-                    camera.fov
+                    num(fov)
+                ),
+            ));
+        }
+        // The camera's tan(fov/2) must not underflow (found by tests/tests/fuzz_loaders.rs:
+        // fov = 1e-40 gave a camera whose every ray had the same direction).
+        if !(camera.fov.to_radians() * 0.5).is_normal() {
+            return Err(Error::in_file(
+                path,
+                format!(
+                    "[camera].fov = {} degrees is too small for f32 (the view would be a point)",
+                    num(fov)
                 ),
             ));
         }
         let eye = glam::Vec3::from_array(camera.eye);
         let at = glam::Vec3::from_array(camera.at);
         let up = glam::Vec3::from_array(camera.up);
-        if (at - eye).length_squared() == 0.0 || (at - eye).cross(up).length_squared() == 0.0 {
+        // As Camera::look_at computes its frame: both directions must normalise to finite
+        // vectors (this also refuses points so far apart that at - eye overflows f32).
+        let frame = (at - eye)
+            .try_normalize()
+            .and_then(|forward| forward.cross(up).try_normalize());
+        if frame.is_none() {
             return Err(Error::in_file(
                 path,
-                "[camera]: eye, at and up do not define a view (eye == at, or up parallel to the view direction)",
+                "[camera]: eye, at and up do not define a view (eye == at, up parallel to the view direction, or coordinates too large)",
             ));
         }
 
@@ -150,7 +187,8 @@ impl SceneFile {
                 return Err(Error::in_file(
                     path,
                     format!(
-                        "[renderer].type = \"{kind}\" (realtime = {realtime}) is a TinyRender pass that ember does not implement; supported: \"path\" (realtime = false) and \"gi\" (realtime = true)"
+                        "[renderer].type = \"{}\" (realtime = {realtime}) is a TinyRender pass that ember does not implement; supported: \"path\" (realtime = false) and \"gi\" (realtime = true)",
+                        quote(&kind)
                     ),
                 ))
             }
@@ -158,7 +196,8 @@ impl SceneFile {
                 return Err(Error::in_file(
                     path,
                     format!(
-                        "[renderer].type = \"{kind}\" is not a renderer type (realtime = {realtime}); valid types: \"path\" (realtime = false) and \"gi\" (realtime = true)"
+                        "[renderer].type = \"{}\" is not a renderer type (realtime = {realtime}); valid types: \"path\" (realtime = false) and \"gi\" (realtime = true)",
+                        quote(&kind)
                     ),
                 ))
             }
@@ -174,11 +213,37 @@ impl SceneFile {
     }
 }
 
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
+/// 1-based line and column (in characters) of byte `offset`; any offset is accepted, even
+/// one inside a character or past the end.
+fn line_col(text: &[u8], offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+    let start = before
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |i| i + 1);
+    // Characters are the bytes that do not continue a UTF-8 sequence.
+    let col = before[start..]
+        .iter()
+        .filter(|&&b| b & 0xC0 != 0x80)
+        .count()
+        + 1;
     (line, col)
+}
+
+/// A number for an error message: as Rust prints it, but in exponent form when that would
+/// be very long (1e-40 rather than 0.000…0001).
+fn num(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e15).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// A TOML value for an error message: on one line and cut after a few dozen characters.
+fn show(v: &Value) -> String {
+    quote(&v.to_string())
 }
 
 fn type_name(v: &Value) -> &'static str {
@@ -217,8 +282,9 @@ impl<'a> Keys<'a> {
         Error::in_file(
             self.path,
             format!(
-                "[{table}].{key} must be {want}, found {} ({v})",
-                type_name(v)
+                "[{table}].{key} must be {want}, found {} ({})",
+                type_name(v),
+                show(v)
             ),
         )
     }
@@ -276,7 +342,10 @@ impl<'a> Keys<'a> {
                 _ => {
                     return Err(Error::in_file(
                         self.path,
-                        format!("[{table}].{key} must hold 3 finite numbers, found {v}"),
+                        format!(
+                            "[{table}].{key} must hold 3 finite numbers, found {}",
+                            show(v)
+                        ),
                     ))
                 }
             };
@@ -325,7 +394,10 @@ impl<'a> Keys<'a> {
         if !(rr_prob > 0.0 && rr_prob <= 1.0) {
             return Err(Error::in_file(
                 self.path,
-                format!("[renderer].rrProb = {rr_prob} must be a probability in (0, 1]"),
+                format!(
+                    "[renderer].rrProb = {} must be a probability in (0, 1]",
+                    num(rr_prob)
+                ),
             ));
         }
         Ok(PathDesc {
@@ -333,5 +405,39 @@ impl<'a> Keys<'a> {
             rr_depth: rr_depth as i32,
             rr_prob: rr_prob as f32,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_col_accepts_any_offset() {
+        let text = "ab\né😀x".as_bytes();
+        assert_eq!(line_col(text, 0), (1, 1));
+        assert_eq!(line_col(text, 3), (2, 1));
+        // Inside the 4-byte emoji (bytes 5..9): still its column.
+        assert_eq!(line_col(text, 6), (2, 3));
+        assert_eq!(line_col(text, 9), (2, 3));
+        assert_eq!(line_col(text, 1000), (2, 4));
+    }
+
+    #[test]
+    fn values_in_messages_stay_on_one_line() {
+        let toml = "[input]\nobjfile = \"a.obj\"\n[camera]\n[film]\n[renderer]\ntype = \"\"\"x\ny\"\"\"\nspp = { a = 1, b = \"\\n\" }\n";
+        let e = SceneFile::parse(Path::new("s.toml"), toml).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "s.toml: [renderer].type = \"x\\ny\" is not a renderer type (realtime = false); valid types: \"path\" (realtime = false) and \"gi\" (realtime = true)"
+        );
+        let toml = toml.replace("type = \"\"\"x\ny\"\"\"", "type = \"path\"");
+        let e = SceneFile::parse(Path::new("s.toml"), &toml).unwrap_err();
+        assert!(!e.message.contains('\n'), "{e}");
+        assert!(
+            e.message
+                .starts_with("[renderer].spp must be an integer, found a table ("),
+            "{e}"
+        );
     }
 }

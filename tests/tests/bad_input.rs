@@ -125,6 +125,67 @@ fn scene_file_missing() {
 }
 
 #[test]
+fn scene_file_unreadable() {
+    // A directory where the scene file should be: unreadable for every user.
+    let dir = TempDir::new("scene-is-dir");
+    let scene = dir.path().join("scene.toml");
+    std::fs::create_dir(&scene).expect("mkdir");
+    let out = render(&scene, &[]);
+    assert_bad_input(
+        "scene file is a directory",
+        &out,
+        &dir,
+        "scene.toml",
+        &["cannot read scene file", "Is a directory"],
+    );
+
+    // A file without read permission: only a user without CAP_DAC_OVERRIDE is refused (root
+    // reads it anyway, so then only the directory case above is checked).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let (dir, scene) = scene_dir("scene-no-permission", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+        std::fs::set_permissions(&scene, std::fs::Permissions::from_mode(0o000)).expect("chmod");
+        if std::fs::File::open(&scene).is_err() {
+            let out = render(&scene, &[]);
+            assert_bad_input(
+                "scene file without read permission",
+                &out,
+                &dir,
+                "scene.toml",
+                &["cannot read scene file", "Permission denied"],
+            );
+        } else {
+            println!(
+                "CASE scene file without read permission: not checked (this user reads any file)"
+            );
+        }
+        std::fs::set_permissions(&scene, std::fs::Permissions::from_mode(0o644)).expect("chmod");
+    }
+}
+
+#[test]
+fn scene_file_not_utf8() {
+    let dir = TempDir::new("scene-not-utf8");
+    let scene = dir.path().join("scene.toml");
+    let mut bytes = SCENE_TOML.as_bytes().to_vec();
+    // Line 2 is `objfile = "quad.obj"`: put a Latin-1 'é' inside the string.
+    let at = SCENE_TOML.find("quad.obj").expect("objfile") + 4;
+    bytes.insert(at, 0xE9);
+    std::fs::write(&scene, bytes).expect("write");
+    dir.write("quad.obj", QUAD_OBJ);
+    dir.write("quad.mtl", QUAD_MTL);
+    let out = render(&scene, &[]);
+    assert_bad_input(
+        "scene file is not UTF-8",
+        &out,
+        &dir,
+        "scene.toml",
+        &["not UTF-8 text", "line 2, column 16"],
+    );
+}
+
+#[test]
 fn toml_syntax_error_gives_line() {
     let toml = edit(
         SCENE_TOML,
@@ -316,6 +377,37 @@ fn width_absurd() {
     );
 }
 
+#[test]
+fn samples_absurd() {
+    // Each side is within range; the product of width, height and spp is not.
+    let toml = edit(SCENE_TOML, "width = 8", "width = 32768");
+    let toml = edit(&toml, "height = 8", "height = 32768");
+    let toml = edit(&toml, "spp = 2", "spp = 10000");
+    toml_case(
+        "32768 x 32768 pixels at 10000 spp",
+        &toml,
+        &[
+            "32768x32768 pixels x 10000 spp = 10737418240000 samples",
+            "more than the limit of 10000000000000",
+        ],
+    );
+}
+
+#[test]
+fn image_memory_absurd() {
+    // 2^30 pixels at 2 spp: few samples, but image buffers beyond --max-memory-gib (16).
+    let toml = edit(SCENE_TOML, "width = 8", "width = 32768");
+    let toml = edit(&toml, "height = 8", "height = 32768");
+    toml_case(
+        "32768 x 32768 film",
+        &toml,
+        &[
+            "a 32768x32768 render needs",
+            "GiB of image buffers, more than --max-memory-gib 16",
+        ],
+    );
+}
+
 // ---- command line --------------------------------------------------------------------------
 
 #[test]
@@ -355,6 +447,21 @@ fn obj_missing() {
         &dir,
         "missing.obj",
         &["not found"],
+    );
+}
+
+#[test]
+fn obj_unreadable() {
+    let toml = edit(SCENE_TOML, "objfile = \"quad.obj\"", "objfile = \"meshes\"");
+    let (dir, scene) = scene_dir("obj-is-dir", &toml, QUAD_OBJ, QUAD_MTL);
+    std::fs::create_dir(dir.path().join("meshes")).expect("mkdir");
+    let out = render(&scene, &[]);
+    assert_bad_input(
+        "objfile is a directory",
+        &out,
+        &dir,
+        "meshes",
+        &["cannot read OBJ", "Is a directory"],
     );
 }
 
@@ -408,6 +515,54 @@ fn obj_nan_coordinate() {
 }
 
 #[test]
+fn obj_inf_coordinate() {
+    // 1e39 is beyond f32 and parses as +inf, like `inf` itself.
+    for (case, v) in [("1e39", "v 1e39 -1 0"), ("inf", "v -1 inf 0")] {
+        let obj = edit(QUAD_OBJ, "v -1 -1 0", v);
+        let axis = if case == "inf" { "y" } else { "x" };
+        mesh_case(
+            &format!("OBJ with an {case} coordinate"),
+            &obj,
+            QUAD_MTL,
+            "quad.obj",
+            &[
+                "line 3:",
+                &format!("non-finite {axis} coordinate"),
+                &format!("'{v}'"),
+            ],
+        );
+    }
+}
+
+#[test]
+fn obj_relative_index_before_the_start() {
+    // Found by cargo-fuzz: tobj turned this into an unchecked `usize` overflow.
+    let obj = edit(QUAD_OBJ, "f 1//1 2//1 3//1 4//1", "f 1//1 2//1 3//-3");
+    mesh_case(
+        "OBJ face with a relative normal index before the first vn",
+        &obj,
+        QUAD_MTL,
+        "quad.obj",
+        &["line 9:", "face index -3", "out of range"],
+    );
+}
+
+#[test]
+fn mtl_unreadable() {
+    let (dir, scene) = scene_dir("mtl-is-dir", SCENE_TOML, QUAD_OBJ, QUAD_MTL);
+    std::fs::remove_file(dir.path().join("quad.mtl")).expect("rm");
+    std::fs::create_dir(dir.path().join("quad.mtl")).expect("mkdir");
+    let out = render(&scene, &[]);
+    assert_bad_input(
+        "mtllib names a directory",
+        &out,
+        &dir,
+        "quad.mtl",
+        &["cannot read MTL", "Is a directory", "(mtllib of quad.obj)"],
+    );
+}
+
+#[test]
 fn mtl_missing() {
     let obj = edit(QUAD_OBJ, "mtllib quad.mtl", "mtllib nothere.mtl");
     mesh_case(
@@ -428,6 +583,108 @@ fn mtl_negative_kd() {
         &mtl,
         "quad.mtl",
         &["material 'light'", "Kd", "non-negative"],
+    );
+}
+
+#[test]
+fn mtl_unknown_illum() {
+    let mtl = edit(QUAD_MTL, "illum 7", "illum 42");
+    mesh_case(
+        "MTL with illum 42",
+        QUAD_OBJ,
+        &mtl,
+        "quad.mtl",
+        &[
+            "line 4:",
+            "material 'light'",
+            "illum 42 is not an MTL illumination model (0 to 10",
+        ],
+    );
+}
+
+#[test]
+fn mtl_not_a_number() {
+    let mtl = edit(QUAD_MTL, "Kd 0 0 0", "Kd 0 red 0");
+    mesh_case(
+        "MTL with Kd 0 red 0",
+        QUAD_OBJ,
+        &mtl,
+        "quad.mtl",
+        &[
+            "line 2:",
+            "material 'light'",
+            "Kd value 'red' is not a number",
+        ],
+    );
+    let mtl = edit(QUAD_MTL, "illum 7", "illum 7.5");
+    mesh_case(
+        "MTL with illum 7.5",
+        QUAD_OBJ,
+        &mtl,
+        "quad.mtl",
+        &["line 4:", "illum value '7.5' is not an integer"],
+    );
+}
+
+#[test]
+fn mtl_colour_with_one_number() {
+    // Found by cargo-fuzz: tobj's MTL parser panicked on this (unwrap in parse_float3).
+    let mtl = edit(QUAD_MTL, "Kd 0 0 0", "Kd 0.5");
+    mesh_case(
+        "MTL with Kd 0.5",
+        QUAD_OBJ,
+        &mtl,
+        "quad.mtl",
+        &["line 2:", "Kd must have 3 numbers (r g b), found 1"],
+    );
+}
+
+#[test]
+fn mtl_negative_ns() {
+    let mtl = edit(QUAD_MTL, "illum 7", "Ns -3\nillum 7");
+    mesh_case(
+        "MTL with Ns -3",
+        QUAD_OBJ,
+        &mtl,
+        "quad.mtl",
+        &[
+            "line 4:",
+            "material 'light'",
+            "Ns = -3 must be finite and >= 0",
+        ],
+    );
+}
+
+#[test]
+fn mtl_missing_texture() {
+    let mtl = edit(QUAD_MTL, "illum 7", "illum 7\nmap_Kd wood.png");
+    mesh_case(
+        "MTL map_Kd names a missing file",
+        QUAD_OBJ,
+        &mtl,
+        "quad.mtl",
+        &[
+            "line 5:",
+            "material 'light'",
+            "map_Kd texture",
+            "wood.png not found",
+        ],
+    );
+}
+
+#[test]
+fn mtl_texture_found_renders_with_a_warning() {
+    // Positive control of the case above: TinyRender loads `<name>.ppm` whatever extension is
+    // written, so wood.ppm satisfies map_Kd wood.png. Textures are not used yet: a warning.
+    let mtl = edit(QUAD_MTL, "illum 7", "illum 7\nmap_Kd wood.png");
+    let (dir, scene) = scene_dir("texture-found", SCENE_TOML, QUAD_OBJ, &mtl);
+    dir.write("wood.ppm", "P6\n1 1\n255\n\0\0\0");
+    let out = render(&scene, &["--spp", "1"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "exit {:?}: {stderr}", out.status);
+    assert!(
+        stderr.contains("warning:") && stderr.contains("texture maps are not supported"),
+        "{stderr}"
     );
 }
 
