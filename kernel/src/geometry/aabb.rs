@@ -100,6 +100,7 @@ impl Aabb {
         let t0 = tx0.max(ty0).max(tz0);
         let t1 = tx1.min(ty1).min(tz1);
         // t0 and t1 are NaN only if every slab produced a NaN; then nothing constrains.
-        !(t0 > t1) & (t0 < t_max || t0.is_nan()) & (t1 > 0.0 || t1.is_nan())
+        let entered = t0.partial_cmp(&t1) != Some(core::cmp::Ordering::Greater);
+        entered & (t0 < t_max || t0.is_nan()) & (t1 > 0.0 || t1.is_nan())
     }
 }
