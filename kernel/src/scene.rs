@@ -2,7 +2,7 @@
 
 use crate::bsdf::Bsdf;
 use crate::bvh::Bvh;
-use crate::geometry::{inset_barycentrics, intersect_triangle, triangle_point, Ray};
+use crate::geometry::{inset_barycentrics, triangle_point, Ray, WatertightRay};
 use crate::math::Frame;
 use crate::Rgb;
 use glam::Vec3;
@@ -223,10 +223,11 @@ impl<'a> SceneView<'a> {
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let mut best: Option<Hit> = None;
+        let wray = WatertightRay::new(ray.o, ray.d);
         self.bvh
             .traverse::<false, _>(ray.o, ray.d, ray.t_max, |prim, t_max| {
                 let [p0, p1, p2] = self.triangle_vertices(prim);
-                let h = intersect_triangle(ray.o, ray.d, t_max, p0, p1, p2)?;
+                let h = wray.intersect(t_max, p0, p1, p2)?;
                 best = Some(Hit {
                     t: h.t,
                     triangle: prim,
@@ -242,10 +243,11 @@ impl<'a> SceneView<'a> {
     #[inline]
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
+        let wray = WatertightRay::new(ray.o, ray.d);
         self.bvh
             .traverse::<true, _>(ray.o, ray.d, ray.t_max, |prim, t_max| {
                 let [p0, p1, p2] = self.triangle_vertices(prim);
-                intersect_triangle(ray.o, ray.d, t_max, p0, p1, p2).map(|h| h.t)
+                wray.intersect(t_max, p0, p1, p2).map(|h| h.t)
             })
     }
 

@@ -77,35 +77,30 @@ impl Aabb {
 
     /// Slab test against `[0, t_max]` with pbrt's conservative rounding of the far distance.
     /// `inv_d` is `1/d` per axis and `neg` tells which axes have a negative direction.
+    ///
+    /// Branch-free: the entry distance is the largest near-slab distance and the exit distance
+    /// the smallest far one, so one comparison decides. That is the decision of pbrt's
+    /// axis-by-axis early exits (max(lo) <= min(hi) iff every lo_i <= hi_j) without their
+    /// data-dependent branches. `f32::max`/`min` ignore a NaN (0·∞ for an origin on a slab
+    /// plane with d = 0), so such a slab does not constrain the ray, as in pbrt.
     #[inline]
     #[must_use]
     pub fn hit(&self, o: Vec3, inv_d: Vec3, neg: [bool; 3], t_max: f32) -> bool {
         let sel = |lo: f32, hi: f32, n: bool| if n { (hi, lo) } else { (lo, hi) };
         let scale = 1.0 + 2.0 * gamma(3);
         let (x0, x1) = sel(self.min.x, self.max.x, neg[0]);
-        let mut t0 = (x0 - o.x) * inv_d.x;
-        let mut t1 = (x1 - o.x) * inv_d.x * scale;
         let (y0, y1) = sel(self.min.y, self.max.y, neg[1]);
+        let (z0, z1) = sel(self.min.z, self.max.z, neg[2]);
+        let tx0 = (x0 - o.x) * inv_d.x;
+        let tx1 = (x1 - o.x) * inv_d.x * scale;
         let ty0 = (y0 - o.y) * inv_d.y;
         let ty1 = (y1 - o.y) * inv_d.y * scale;
-        if t0 > ty1 || ty0 > t1 {
-            return false;
-        }
-        // max/min ignore a NaN (0·∞ for an origin on a slab plane with d = 0): that slab
-        // does not constrain the ray.
-        t0 = t0.max(ty0);
-        t1 = t1.min(ty1);
-        let (z0, z1) = sel(self.min.z, self.max.z, neg[2]);
         let tz0 = (z0 - o.z) * inv_d.z;
         let tz1 = (z1 - o.z) * inv_d.z * scale;
-        if t0 > tz1 || tz0 > t1 {
-            return false;
-        }
-        // max/min ignore a NaN (0·∞ for an origin on a slab plane with d = 0): that slab
-        // does not constrain the ray.
-        t0 = t0.max(tz0);
-        t1 = t1.min(tz1);
-        // t0 and t1 are NaN only if the x slab produced them; then x does not constrain.
-        (t0 < t_max || t0.is_nan()) && (t1 > 0.0 || t1.is_nan())
+        let t0 = tx0.max(ty0).max(tz0);
+        let t1 = tx1.min(ty1).min(tz1);
+        // t0 and t1 are NaN only if every slab produced a NaN; then nothing constrains.
+        let entered = t0.partial_cmp(&t1) != Some(core::cmp::Ordering::Greater);
+        entered & (t0 < t_max || t0.is_nan()) & (t1 > 0.0 || t1.is_nan())
     }
 }

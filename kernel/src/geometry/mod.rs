@@ -8,4 +8,5 @@ pub use aabb::Aabb;
 pub use ray::{offset_ray_origin, spawn_ray, spawn_ray_to, Ray, SHADOW_EPSILON};
 pub use triangle::{
     inset_barycentrics, intersect_triangle, triangle_point, triangle_point_error, TriangleHit,
+    WatertightRay,
 };

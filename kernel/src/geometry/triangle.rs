@@ -30,9 +30,115 @@ fn max_dimension(v: Vec3) -> usize {
     }
 }
 
-/// Watertight ray–triangle intersection (Woop, Benthin and Wald, JCGT 2013, as in pbrt-v4):
-/// rays through a shared edge or vertex hit at least one of the triangles that share it, and
-/// `t` is accepted only when it is provably positive given the rounding error.
+/// A ray prepared for [`intersect_triangle`]: the permutation that makes the largest
+/// direction component z and the shear that maps the direction to +z depend only on the ray,
+/// so a traversal computes them once instead of once per triangle (same values, bit for bit).
+#[derive(Clone, Copy, Debug)]
+pub struct WatertightRay {
+    o: Vec3,
+    k: [usize; 3],
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl WatertightRay {
+    #[inline]
+    #[must_use]
+    pub fn new(o: Vec3, d: Vec3) -> Self {
+        let kz = max_dimension(d.abs());
+        let kx = if kz == 2 { 0 } else { kz + 1 };
+        let ky = if kx == 2 { 0 } else { kx + 1 };
+        let dp = permute(d, kx, ky, kz);
+        // Shear so the ray direction becomes +z.
+        let sz = 1.0 / dp.z;
+        Self {
+            o,
+            k: [kx, ky, kz],
+            sx: -dp.x * sz,
+            sy: -dp.y * sz,
+            sz,
+        }
+    }
+
+    /// Watertight ray–triangle intersection (Woop, Benthin and Wald, JCGT 2013, as in
+    /// pbrt-v4): rays through a shared edge or vertex hit at least one of the triangles that
+    /// share it, and `t` is accepted only when it is provably positive given the rounding error.
+    #[inline]
+    #[must_use]
+    pub fn intersect(&self, t_max: f32, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<TriangleHit> {
+        let [kx, ky, kz] = self.k;
+        let (o, sx, sy, sz) = (self.o, self.sx, self.sy, self.sz);
+        let mut a = permute(p0 - o, kx, ky, kz);
+        let mut b = permute(p1 - o, kx, ky, kz);
+        let mut c = permute(p2 - o, kx, ky, kz);
+        a.x += sx * a.z;
+        a.y += sy * a.z;
+        b.x += sx * b.z;
+        b.y += sy * b.z;
+        c.x += sx * c.z;
+        c.y += sy * c.z;
+        // Edge functions. Plain products (no FMA) keep e exactly antisymmetric between the two
+        // triangles that share an edge, which is what makes the test watertight.
+        let mut e0 = b.x * c.y - b.y * c.x;
+        let mut e1 = c.x * a.y - c.y * a.x;
+        let mut e2 = a.x * b.y - a.y * b.x;
+        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+            // Exactly on an edge in f32: decide in f64.
+            let (ad, bd, cd) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+            let ed = |p: DVec3, q: DVec3| (p.x * q.y - p.y * q.x) as f32;
+            e0 = ed(bd, cd);
+            e1 = ed(cd, ad);
+            e2 = ed(ad, bd);
+        }
+        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+            return None;
+        }
+        let det = e0 + e1 + e2;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        // Largest |z| of the translated vertices in world units, before z is scaled to ray
+        // parameter units below: the shear `x + Sx·z` (|Sx| ≤ 1) carries an error of this size.
+        let max_z_world = a.z.abs().max(b.z.abs()).max(c.z.abs());
+        a.z *= sz;
+        b.z *= sz;
+        c.z *= sz;
+        let t_scaled = e0 * a.z + e1 * b.z + e2 * c.z;
+        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+            return None;
+        }
+        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+            return None;
+        }
+        let inv_det = 1.0 / det;
+        let b1 = e1 * inv_det;
+        let b2 = e2 * inv_det;
+        let t = t_scaled * inv_det;
+        // Conservative check that t > 0 (pbrt-v4 §6.8.4). `max_zt` is in units of the ray
+        // parameter (z scaled by 1/d.z), x, y and the sheared-coordinate errors are in world units.
+        // pbrt-v4 adds `max_zt` to the x and y errors, which mixes the two and is only right for
+        // |d| ≈ 1: for a short unnormalised direction (a shadow ray `target − origin` in a scene of
+        // size 1e-4) the bound grew as 1/|d| and rejected every hit with t below ~0.04, and for a
+        // long one it shrank as 1/|d|. The shear error is bounded with the unscaled z instead.
+        let max_zt = a.z.abs().max(b.z.abs()).max(c.z.abs());
+        let delta_z = gamma(3) * max_zt;
+        let max_xt = a.x.abs().max(b.x.abs()).max(c.x.abs());
+        let max_yt = a.y.abs().max(b.y.abs()).max(c.y.abs());
+        let delta_x = gamma(5) * (max_xt + max_z_world);
+        let delta_y = gamma(5) * (max_yt + max_z_world);
+        let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+        let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+        let delta_t =
+            3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+        if t <= delta_t {
+            return None;
+        }
+        Some(TriangleHit { t, b1, b2 })
+    }
+}
+
+/// [`WatertightRay::intersect`] for a single triangle.
 #[inline]
 #[must_use]
 pub fn intersect_triangle(
@@ -43,80 +149,7 @@ pub fn intersect_triangle(
     p1: Vec3,
     p2: Vec3,
 ) -> Option<TriangleHit> {
-    let kz = max_dimension(d.abs());
-    let kx = if kz == 2 { 0 } else { kz + 1 };
-    let ky = if kx == 2 { 0 } else { kx + 1 };
-    let dp = permute(d, kx, ky, kz);
-    let mut a = permute(p0 - o, kx, ky, kz);
-    let mut b = permute(p1 - o, kx, ky, kz);
-    let mut c = permute(p2 - o, kx, ky, kz);
-    // Shear so the ray direction becomes +z.
-    let sz = 1.0 / dp.z;
-    let sx = -dp.x * sz;
-    let sy = -dp.y * sz;
-    a.x += sx * a.z;
-    a.y += sy * a.z;
-    b.x += sx * b.z;
-    b.y += sy * b.z;
-    c.x += sx * c.z;
-    c.y += sy * c.z;
-    // Edge functions. Plain products (no FMA) keep e exactly antisymmetric between the two
-    // triangles that share an edge, which is what makes the test watertight.
-    let mut e0 = b.x * c.y - b.y * c.x;
-    let mut e1 = c.x * a.y - c.y * a.x;
-    let mut e2 = a.x * b.y - a.y * b.x;
-    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
-        // Exactly on an edge in f32: decide in f64.
-        let (ad, bd, cd) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
-        let ed = |p: DVec3, q: DVec3| (p.x * q.y - p.y * q.x) as f32;
-        e0 = ed(bd, cd);
-        e1 = ed(cd, ad);
-        e2 = ed(ad, bd);
-    }
-    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
-        return None;
-    }
-    let det = e0 + e1 + e2;
-    if det == 0.0 || !det.is_finite() {
-        return None;
-    }
-    // Largest |z| of the translated vertices in world units, before z is scaled to ray
-    // parameter units below: the shear `x + Sx·z` (|Sx| ≤ 1) carries an error of this size.
-    let max_z_world = a.z.abs().max(b.z.abs()).max(c.z.abs());
-    a.z *= sz;
-    b.z *= sz;
-    c.z *= sz;
-    let t_scaled = e0 * a.z + e1 * b.z + e2 * c.z;
-    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
-        return None;
-    }
-    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
-        return None;
-    }
-    let inv_det = 1.0 / det;
-    let b1 = e1 * inv_det;
-    let b2 = e2 * inv_det;
-    let t = t_scaled * inv_det;
-    // Conservative check that t > 0 (pbrt-v4 §6.8.4). `max_zt` is in units of the ray
-    // parameter (z scaled by 1/d.z), x, y and the sheared-coordinate errors are in world units.
-    // pbrt-v4 adds `max_zt` to the x and y errors, which mixes the two and is only right for
-    // |d| ≈ 1: for a short unnormalised direction (a shadow ray `target − origin` in a scene of
-    // size 1e-4) the bound grew as 1/|d| and rejected every hit with t below ~0.04, and for a
-    // long one it shrank as 1/|d|. The shear error is bounded with the unscaled z instead.
-    let max_zt = a.z.abs().max(b.z.abs()).max(c.z.abs());
-    let delta_z = gamma(3) * max_zt;
-    let max_xt = a.x.abs().max(b.x.abs()).max(c.x.abs());
-    let max_yt = a.y.abs().max(b.y.abs()).max(c.y.abs());
-    let delta_x = gamma(5) * (max_xt + max_z_world);
-    let delta_y = gamma(5) * (max_yt + max_z_world);
-    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-    let delta_t =
-        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
-    if t <= delta_t {
-        return None;
-    }
-    Some(TriangleHit { t, b1, b2 })
+    WatertightRay::new(o, d).intersect(t_max, p0, p1, p2)
 }
 
 /// Absolute error bound of a point computed as `b0·p0 + b1·p1 + b2·p2` (pbrt-v4 §6.8.5).

@@ -8,7 +8,10 @@
 //! Russian roulette applies only when `max_depth == −1` (the rule of most TinyRender solutions,
 //! and the one the `_rr` reference uses): from `rr_depth` bounces on, a path continues with
 //! probability `rr_prob` and its throughput is divided by `rr_prob`. Bounded depths are
-//! rendered exactly, without roulette.
+//! rendered exactly, without roulette. TinyRender's estimators (implicit, explicit) survive
+//! with the fixed probability `rr_prob`; ember's MIS path tracer uses throughput-adaptive
+//! roulette capped by `rr_prob` ([`PathSettings::survives_adaptive_roulette`]), as pbrt-v4
+//! and Mitsuba 3 do.
 
 mod bake;
 mod direct;
@@ -90,6 +93,26 @@ impl PathSettings {
         }
         *beta /= self.rr_prob;
         true
+    }
+
+    /// Throughput-adaptive Russian roulette (pbrt-v4, Mitsuba 3): from `rr_depth` bounces on,
+    /// a path survives with probability equal to its largest throughput component, capped by
+    /// `rr_prob`. Paths that can no longer carry much light end early, bright ones go on.
+    /// Unbiased like the fixed rule, with far fewer rays per sample in absorbing scenes.
+    /// Applies only when `max_depth == −1`, like [`Self::survives_roulette`].
+    #[inline]
+    pub fn survives_adaptive_roulette(&self, bounces: u32, u: f32, beta: &mut Rgb) -> bool {
+        if self.max_depth >= 0 || (bounces as i64) < i64::from(self.rr_depth) {
+            return true;
+        }
+        let q = beta.max_element().min(self.rr_prob);
+        // Written so that a NaN throughput ends the path.
+        if u < q {
+            *beta /= q;
+            true
+        } else {
+            false
+        }
     }
 }
 
