@@ -83,7 +83,11 @@ for s in ${SCENES//,/ }; do
 done
 rm -f "$RES/part.jsonl"
 echo "== Embree: bench.py --skip-native"
+# What other processes take meanwhile (ember's binary measures this itself, per row).
+python3 "$HERE/cpu_other.py" "$(ps -o pgid= $$ | tr -d ' ')" "$RES/embree-other-cpu.json" &
+sampler=$!
 (cd "$DATA" && "$VENV/bin/python" bench.py --skip-native --scenes "$SCENES" --rounds "$ROUNDS" --reps "$PASSES")
+kill "$sampler"; wait "$sampler" || true
 cp "$DATA/results/bench_results.json" "$DATA/RESULTS.md" "$RES/"
 echo "== uptime: $(uptime)"
 "$VENV/bin/python" "$HERE/table.py" --data "$DATA" --ember "$RES/ember-1t.jsonl" "$RES/ember-2t.jsonl" \

@@ -60,10 +60,25 @@ def main():
              f"(Python {meta['python']}, numpy {meta['numpy']}). 1,000,000 rays per set, traced one at a time. "
              f"Load average (1/5/15 min) during ember's runs: {min(loads)} to {max(loads)}; "
              f"during Embree's: {meta['load_start']} to {meta.get('load_end', '?')}.\n")
+    other = [r["other_cores"] for r in traces.values() if r.get("other_cores") is not None]
+    if other:
+        L.append(f"CPU taken by other processes while ember's timed passes ran (measured per row from "
+                 f"/proc/stat minus ember's own CPU time; 2 cores in all): median {sorted(other)[len(other) // 2]:.2f}, "
+                 f"max {max(other):.2f} cores; rows above 0.2 are marked with *.")
+    sampler = os.path.join(os.path.dirname(args.ember[0]), "embree-other-cpu.json")
+    if os.path.exists(sampler):
+        with open(sampler) as fh:
+            c = json.load(fh)
+        ser = sorted(c["series"]) or [0.0]
+        L.append(f"While Embree's bench.py ran ({c['seconds']} s sampled each second by `cpu_other.py`): other "
+                 f"processes took {c['mean_cores']:.2f} cores on average, median {ser[len(ser) // 2]:.2f}, "
+                 f"max {c['max_cores']:.2f}; share of seconds above 0.2 cores: "
+                 f"{sum(x > 0.2 for x in ser) / len(ser):.0%}.\n")
     if args.note:
         L.append(args.note + "\n")
-    L.append("Mrays/s from the **median** pass. ember: `SceneView::intersect` / `SceneView::occluded` (binary "
-             "BVH, watertight triangle test), 1 warm-up + 3 timed passes, each writing t and triangle (or the "
+    passes = len(next(iter(traces.values()))["times_s"]) if traces else 0
+    L.append(f"Mrays/s from the **median** pass. ember: `SceneView::intersect` / `SceneView::occluded` (binary "
+             f"BVH, watertight triangle test), 1 warm-up + {passes} timed passes, each writing t and triangle (or the "
              "occlusion flag) per ray; 1 thread pinned to one CPU with `taskset`, 2 threads pulling 4096-ray chunks. "
              f"Embree: `bench.py --skip-native` (embreex's Cython loop of `rtcIntersect1`/`rtcOccluded1`, "
              f"INTERSECT with output=True; 1 thread pinned, 2 threads = two Python threads on 32 chunks), "
@@ -85,9 +100,10 @@ def main():
                 if e is None and x is None:
                     continue
                 em = mrays(e) if e else None
+                busy = "*" if e and (e.get("other_cores") or 0) > 0.2 else ""
                 xm = mrays(x) if x else None
                 row = (f"| {s} | {builds[s]['triangles']:,} | {rayset} | {q} | {th} | "
-                       f"{em:.2f} | " if em else f"| {s} | {builds[s]['triangles']:,} | {rayset} | {q} | {th} | – | ")
+                       f"{em:.2f}{busy} | " if em else f"| {s} | {builds[s]['triangles']:,} | {rayset} | {q} | {th} | – | ")
                 row += f"{xm:.2f} | " if xm else "– | "
                 row += f"{em / xm:.2f} |" if em and xm else "– |"
                 if robust:

@@ -583,6 +583,34 @@ fn list(v: &[f64]) -> String {
     format!("[{}]", items.join(", "))
 }
 
+/// Busy CPU time of the whole machine and of this process, in clock ticks (Linux `/proc`;
+/// `None` elsewhere). Their difference over a measurement is what other processes took.
+fn cpu_ticks() -> Option<(u64, u64)> {
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    // cpu  user nice system idle iowait irq softirq steal ...: all but idle and iowait.
+    let f: Vec<u64> = stat
+        .lines()
+        .next()?
+        .split_whitespace()
+        .skip(1)
+        .map(|v| v.parse().unwrap_or(0))
+        .collect();
+    let machine = f.iter().take(8).sum::<u64>() - f.get(3)? - f.get(4)?;
+    let own = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // After "(comm)": state is field 3, utime and stime are fields 14 and 15.
+    let rest: Vec<&str> = own.rsplit_once(')')?.1.split_whitespace().collect();
+    let own = rest.get(11)?.parse::<u64>().ok()? + rest.get(12)?.parse::<u64>().ok()?;
+    Some((machine, own))
+}
+
+/// Cores' worth of CPU that other processes used between two [`cpu_ticks`] readings `secs`
+/// apart (100 ticks per second, Linux's USER_HZ).
+fn other_cores(before: Option<(u64, u64)>, after: Option<(u64, u64)>, secs: f64) -> Option<f64> {
+    let ((m0, o0), (m1, o1)) = (before?, after?);
+    let other = (m1 - m0) as f64 - (o1 - o0) as f64;
+    Some((other / 100.0 / secs).max(0.0))
+}
+
 /// The 1, 5 and 15-minute load averages (Linux), or "?".
 fn loadavg() -> String {
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_else(|_| "?".into());
@@ -654,15 +682,19 @@ fn run(args: &Args) -> Res<()> {
             for &threads in &args.threads {
                 let load_before = loadavg();
                 trace(&view, q, &rays, &mut out, threads); // warm-up
+                let (ticks, start) = (cpu_ticks(), Instant::now());
                 let times: Vec<f64> = (0..args.passes)
                     .map(|_| trace(&view, q, &rays, &mut out, threads))
                     .collect();
+                // How much of the machine others took while the timed passes ran.
+                let other = other_cores(ticks, cpu_ticks(), start.elapsed().as_secs_f64());
+                let other_text = other.map_or("?".to_string(), |c| format!("{c:.2}"));
                 let mrays = rays.len() as f64 / median(&times) / 1e6;
                 let hits = out.iter().filter(|o| o.prim >= 0).count();
                 // Results must not depend on the thread count: compared across runs by hash.
                 let hash = results_hash(&out);
                 let mut line = format!(
-                    "  {set:<10} {:<9} T={threads}: {mrays:7.3} Mrays/s (median of {}; passes {}) hits {hits}, results hash {hash:016x}",
+                    "  {set:<10} {:<9} T={threads}: {mrays:7.3} Mrays/s (median of {}; passes {}) hits {hits}, results hash {hash:016x}; other processes {other_text} cores",
                     q.name(),
                     args.passes,
                     times
@@ -707,11 +739,12 @@ fn run(args: &Args) -> Res<()> {
                 println!("{line}");
                 writeln!(
                     json,
-                    "{{\"kind\": \"trace\", \"scene\": \"{scene}\", \"triangles\": {n_tris}, \"rayset\": \"{set}\", \"query\": \"{}\", \"threads\": {threads}, \"rays\": {}, \"times_s\": {}, \"median_s\": {:.6}, \"mrays\": {mrays:.4}, \"hits\": {hits}, \"results_hash\": \"{hash:016x}\", \"loadavg_before\": \"{load_before}\", \"loadavg_after\": \"{}\", \"t_tol\": {:e}, \"check\": {{{}}}}}",
+                    "{{\"kind\": \"trace\", \"scene\": \"{scene}\", \"triangles\": {n_tris}, \"rayset\": \"{set}\", \"query\": \"{}\", \"threads\": {threads}, \"rays\": {}, \"times_s\": {}, \"median_s\": {:.6}, \"mrays\": {mrays:.4}, \"hits\": {hits}, \"results_hash\": \"{hash:016x}\", \"other_cores\": {}, \"loadavg_before\": \"{load_before}\", \"loadavg_after\": \"{}\", \"t_tol\": {:e}, \"check\": {{{}}}}}",
                     q.name(),
                     rays.len(),
                     list(&times),
                     median(&times),
+                    other.map_or("null".to_string(), |c| format!("{c:.3}")),
                     loadavg(),
                     args.t_tol,
                     checks.join(", ")
