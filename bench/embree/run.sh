@@ -1,0 +1,94 @@
+#!/usr/bin/env bash
+# ember's BVH against Intel Embree on bench-embree's triangles and rays (shared/bench-embree),
+# in one run on one machine: Mrays/s per scene x ray set x query x threads, build time, memory,
+# and a ray-by-ray check of ember's hits against Embree's. See README.md beside this script.
+#
+#   bench/embree/run.sh                              # everything (~10 min on a quiet 2-core machine)
+#   SCENES=cbox,sphere_1k ROUNDS=1 bench/embree/run.sh   # a smoke run (~1 min)
+#
+# Work files go to $WORK (default /tmp/embree-data): the Python venv (embreex, numpy), a copy of
+# bench-embree's scripts with the generated scenes and rays (~430 MB, deterministic) and Embree's
+# results. Nothing is written to shared/. Writes bench/embree/table.md and bench/embree/results/.
+# Needs PyPI on the first run. Run it on a quiet machine: the figures compare within one run only.
+set -euo pipefail
+HERE="$(cd "$(dirname "$0")" && pwd)"
+ROOT="$(cd "$HERE/../.." && pwd)"
+SRC="${EMBER_BENCH_EMBREE:-$ROOT/../shared/bench-embree}"       # make_data.py, bench.py
+TINYRENDER="${EMBER_TINYRENDER:-$ROOT/../shared/tinyrender}"     # the Cornell box OBJ
+WORK="${WORK:-/tmp/embree-data}"
+SCENES="${SCENES:-cbox,sphere_1k,sphere_10k,sphere_100k,sphere_1m}"
+ROUNDS="${ROUNDS:-3}"           # bench.py rounds (a fresh process and BVH each)
+PASSES="${PASSES:-3}"           # timed passes per configuration (after one warm-up)
+OUT="${OUT:-$HERE}"             # where table.md and results/ go
+VENV="$WORK/venv"
+DATA="$WORK/bench-embree"
+RES="$OUT/results"
+
+[ -f "$SRC/make_data.py" ] && [ -f "$SRC/bench.py" ] || { echo "no bench-embree at $SRC (set EMBER_BENCH_EMBREE)" >&2; exit 1; }
+mkdir -p "$WORK" "$DATA" "$RES"
+
+if [ ! -x "$VENV/bin/python" ]; then
+    echo "== creating $VENV"
+    python3 -m venv "$VENV"
+fi
+if ! "$VENV/bin/python" -c 'import embreex, numpy' 2>/dev/null; then
+    echo "== pip install embreex numpy"
+    "$VENV/bin/pip" install --quiet embreex numpy
+fi
+
+# bench-embree's scripts write next to themselves and read the Cornell box from
+# ../tinyrender/data/a5/cbox/mesh/cbox.obj: run a copy in $DATA with that link beside it.
+for f in make_data.py bench.py README.md; do
+    cmp -s "$SRC/$f" "$DATA/$f" || install -m 644 "$SRC/$f" "$DATA/$f"
+done
+ln -sfn "$TINYRENDER" "$WORK/tinyrender"
+
+missing=""
+for s in ${SCENES//,/ }; do
+    for f in "scenes/bin/${s}_V.npy" "rays/${s}_shadow_tfar.npy"; do
+        [ -f "$DATA/$f" ] || missing="$missing,$s"
+    done
+done
+if [ -n "$missing" ]; then
+    echo "== make_data.py --only ${missing#,}"
+    (cd "$DATA" && "$VENV/bin/python" make_data.py --only "${missing#,}")
+fi
+if [ ! -f "$DATA/results/ref-robust/${SCENES##*,}_shadow_OCCLUDED_occ.u8" ] || [ -n "$missing" ]; then
+    echo "== Embree's per-ray results (embree_ref.py)"
+    "$VENV/bin/python" "$HERE/embree_ref.py" "$DATA" --scenes "$SCENES"
+fi
+
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/ember-target}"
+echo "== cargo build --release -p ember-tests --bin ember-bvh-embree"
+(cd "$ROOT" && cargo build --release --quiet -p ember-tests --bin ember-bvh-embree)
+BIN="$CARGO_TARGET_DIR/release/ember-bvh-embree"
+
+# One thread pinned to one CPU, as bench.py pins Embree's 1-thread runs.
+pin=()
+if command -v taskset >/dev/null; then
+    pin=(taskset -c "$(taskset -pc $$ | sed 's/.*: *//; s/[-,].*//')")
+fi
+echo "== uptime: $(uptime)"
+# One process per scene and thread count (each well under 2 minutes).
+: >"$RES/ember-1t.jsonl"; : >"$RES/ember-1t.txt"; : >"$RES/ember-2t.jsonl"; : >"$RES/ember-2t.txt"
+for s in ${SCENES//,/ }; do
+    echo "== ember $s, 1 thread"
+    "${pin[@]}" "$BIN" "$DATA" --scenes "$s" --threads 1 --passes "$PASSES" --json "$RES/part.jsonl" \
+        | tee -a "$RES/ember-1t.txt"
+    cat "$RES/part.jsonl" >>"$RES/ember-1t.jsonl"
+    echo "== ember $s, 2 threads"
+    "$BIN" "$DATA" --scenes "$s" --threads 2 --passes "$PASSES" --json "$RES/part.jsonl" \
+        | tee -a "$RES/ember-2t.txt"
+    cat "$RES/part.jsonl" >>"$RES/ember-2t.jsonl"
+done
+rm -f "$RES/part.jsonl"
+echo "== Embree: bench.py --skip-native"
+# What other processes take meanwhile (ember's binary measures this itself, per row).
+python3 "$HERE/cpu_other.py" "$(ps -o pgid= $$ | tr -d ' ')" "$RES/embree-other-cpu.json" &
+sampler=$!
+(cd "$DATA" && "$VENV/bin/python" bench.py --skip-native --scenes "$SCENES" --rounds "$ROUNDS" --reps "$PASSES")
+kill "$sampler"; wait "$sampler" || true
+cp "$DATA/results/bench_results.json" "$DATA/RESULTS.md" "$RES/"
+echo "== uptime: $(uptime)"
+"$VENV/bin/python" "$HERE/table.py" --data "$DATA" --ember "$RES/ember-1t.jsonl" "$RES/ember-2t.jsonl" \
+    --out "$OUT/table.md"
