@@ -424,6 +424,10 @@ pub struct BenchArgs {
     /// Print only the summary, not a line per rung.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Run the general kernel code, without the shortcuts the scene allows (the image is
+    /// bit-identical; for measuring what they save).
+    #[arg(long)]
+    pub no_shortcuts: bool,
 }
 
 /// Runs `ember bench`.
@@ -472,7 +476,10 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         .map(|p| read_series_csv(p))
         .collect::<Result<Vec<_>>>()?;
     let scene = LoadedScene::load(&a.scene)?;
-    let (_, path, _) = scene.path_settings()?;
+    let (_, mut path, _) = scene.path_settings()?;
+    if a.no_shortcuts {
+        path.shortcuts = ember_kernel::integrator::Shortcuts::NONE;
+    }
     std::fs::create_dir_all(&a.output)
         .map_err(|e| Error::in_file(&a.output, format!("cannot create output directory: {e}")))?;
     let name = a

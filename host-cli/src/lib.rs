@@ -15,7 +15,7 @@ pub mod shard;
 pub use error::{Error, Result};
 
 use ember_kernel::camera::Camera;
-use ember_kernel::integrator::{Integrator, PathSettings};
+use ember_kernel::integrator::{Integrator, PathSettings, Shortcuts};
 use mesh::SceneData;
 use scene_file::{PathDesc, RendererDesc, SceneFile};
 use std::path::Path;
@@ -26,6 +26,7 @@ impl From<PathDesc> for PathSettings {
             max_depth: p.max_depth,
             rr_depth: p.rr_depth,
             rr_prob: p.rr_prob,
+            shortcuts: Shortcuts::NONE,
         }
     }
 }
@@ -56,10 +57,28 @@ impl LoadedScene {
         Camera::look_at(c.eye.into(), c.at.into(), c.up.into(), c.fov, width, height)
     }
 
+    /// The kernel shortcuts this scene allows ([`Shortcuts::analyse`]).
+    #[must_use]
+    pub fn shortcuts(&self) -> Shortcuts {
+        Shortcuts::analyse(&self.data.view())
+    }
+
     /// Bake settings of a `gi` scene (path settings and samples per vertex); other scenes get
-    /// TinyRender's `gi` defaults (maxDepth 5, rrDepth 5, rrProb 0.95, 100 samples).
+    /// TinyRender's `gi` defaults (maxDepth 5, rrDepth 5, rrProb 0.95, 100 samples). With the
+    /// scene's [`Self::shortcuts`].
     #[must_use]
     pub fn gi_settings(&self) -> (PathSettings, u32) {
+        let (path, spv) = self.gi_settings_general();
+        (
+            PathSettings {
+                shortcuts: self.shortcuts(),
+                ..path
+            },
+            spv,
+        )
+    }
+
+    fn gi_settings_general(&self) -> (PathSettings, u32) {
         match self.file.renderer {
             RendererDesc::Gi {
                 path,
@@ -70,17 +89,28 @@ impl LoadedScene {
                     max_depth: 5,
                     rr_depth: 5,
                     rr_prob: 0.95,
+                    shortcuts: Shortcuts::NONE,
                 },
                 100,
             ),
         }
     }
 
-    /// The integrator, path settings and spp of an offline (`path`) scene.
+    /// The integrator, path settings (with the scene's [`Self::shortcuts`]) and spp of an
+    /// offline (`path`) scene.
     ///
     /// # Errors
     /// For a real-time scene, which is not rendered by a path tracer.
     pub fn path_settings(&self) -> Result<(Integrator, PathSettings, u32)> {
+        let (integrator, path, spp) = self.path_settings_general()?;
+        let path = PathSettings {
+            shortcuts: self.shortcuts(),
+            ..path
+        };
+        Ok((integrator, path, spp))
+    }
+
+    fn path_settings_general(&self) -> Result<(Integrator, PathSettings, u32)> {
         match self.file.renderer {
             RendererDesc::Path {
                 explicit,

@@ -8,7 +8,7 @@ use ember_cli::render::{render_interruptible, render_memory, RenderSettings, Sha
 use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
 use ember_cli::shard::{merge, read_partial, render_key, write_partial};
 use ember_cli::{Error, LoadedScene, Result};
-use ember_kernel::integrator::Integrator;
+use ember_kernel::integrator::{Integrator, Shortcuts};
 use ember_kernel::sampler::DEFAULT_SEED;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -117,6 +117,10 @@ struct BakeArgs {
     /// explicit` the bake is TinyRender's.
     #[arg(long, value_parser = ember_cli::bake::parse_estimator, default_value = "mis")]
     bake_estimator: ember_kernel::integrator::BakeEstimator,
+    /// Run the general kernel code, without the shortcuts the scene allows (the image is
+    /// bit-identical; for measuring what they save).
+    #[arg(long)]
+    no_shortcuts: bool,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -175,6 +179,10 @@ struct RenderArgs {
     /// for `ember merge` (default output: `<stem>.shard-I-of-N.exr`).
     #[arg(long, value_parser = parse_shard)]
     shard: Option<Shard>,
+    /// Run the general kernel code, without the shortcuts the scene allows (the image is
+    /// bit-identical; for measuring what they save).
+    #[arg(long)]
+    no_shortcuts: bool,
 }
 
 fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
@@ -256,7 +264,10 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     if let RendererDesc::Gi { .. } = scene.file.renderer {
         return render_with_viewer(a);
     }
-    let (integrator, path, scene_spp) = scene.path_settings()?;
+    let (integrator, mut path, scene_spp) = scene.path_settings()?;
+    if a.no_shortcuts {
+        path.shortcuts = Shortcuts::NONE;
+    }
     let integrator = a.integrator.map_or(integrator, Integrator::from);
     let spp = a.spp.unwrap_or(scene_spp);
     let width = a.width.unwrap_or(scene.file.width);
@@ -444,7 +455,10 @@ fn run_bake(a: &BakeArgs) -> Result<()> {
         ));
     }
     let scene = LoadedScene::load(&a.scene)?;
-    let (path, spv) = scene.gi_settings();
+    let (mut path, spv) = scene.gi_settings();
+    if a.no_shortcuts {
+        path.shortcuts = Shortcuts::NONE;
+    }
     let settings = BakeSettings {
         path,
         samples_per_vertex: a.samples_per_vertex.unwrap_or(spv),

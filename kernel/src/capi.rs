@@ -438,6 +438,7 @@ fn path_settings(s: &EmberSettings) -> Result<PathSettings, i32> {
             max_depth: s.max_depth,
             rr_depth: s.rr_depth,
             rr_prob: s.rr_prob,
+            shortcuts: crate::integrator::Shortcuts::NONE,
         })
         .ok_or(EMBER_ERROR_INVALID_ARGUMENT)
 }

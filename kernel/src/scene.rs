@@ -251,6 +251,19 @@ impl<'a> SceneView<'a> {
             })
     }
 
+    /// Whether the ray hits an emissive triangle of the emitter table before `ray.t_max`,
+    /// ignoring everything else: each is tested with the closest-hit query's own watertight
+    /// test, so when this is false no listed emitter can be the closest hit of `ray`.
+    #[inline]
+    #[must_use]
+    pub fn may_hit_emitter(&self, ray: &Ray) -> bool {
+        let wray = WatertightRay::new(ray.o, ray.d);
+        self.emitter_triangles.iter().any(|&t| {
+            let [p0, p1, p2] = self.triangle_vertices(t);
+            wray.intersect(ray.t_max, p0, p1, p2).is_some()
+        })
+    }
+
     /// The surface point at barycentrics `(b1, b2)` of `triangle`, seen from world direction
     /// `wo_world` (pointing away from the surface).
     #[inline]

@@ -14,6 +14,7 @@ fn settings(spv: u32, threads: usize) -> BakeSettings {
             max_depth: -1,
             rr_depth: 5,
             rr_prob: 0.95,
+            ..PathSettings::default()
         },
         samples_per_vertex: spv,
         seed: DEFAULT_SEED,

@@ -30,3 +30,13 @@ fn determinism_scene_matches_the_golden_hashes() {
         h.bake
     );
 }
+
+/// The bake's settings turn on the kernel shortcuts; they must be ones the scene allows, or the
+/// unchanged bake hash would say nothing about them.
+#[test]
+fn determinism_bake_uses_the_shortcuts_its_scene_allows() {
+    let scene = ember_determinism::Scene::new();
+    let allowed = ember_kernel::integrator::Shortcuts::analyse(&scene.view());
+    assert_eq!(ember_determinism::BAKE_PATH.shortcuts, allowed);
+    assert!(allowed.terminal_emitter_test);
+}

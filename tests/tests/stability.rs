@@ -333,6 +333,7 @@ fn closed_furnace_does_not_leak_under_scale_and_translation() {
         max_depth: -1,
         rr_depth: 5,
         rr_prob: 1.0,
+        ..PathSettings::default()
     };
     let expected = furnace_value(0.8);
     let spp = if cfg!(debug_assertions) { 1 } else { 4 };
@@ -584,6 +585,7 @@ fn room_settings() -> PathSettings {
         max_depth: 4,
         rr_depth: 5,
         rr_prob: 0.95,
+        ..PathSettings::default()
     }
 }
 
@@ -1108,6 +1110,7 @@ fn tiny_hot_emitter_matches_the_closed_form() {
         max_depth: 1,
         rr_depth: 5,
         rr_prob: 0.95,
+        ..PathSettings::default()
     };
     // Mean and blocks for two integrators, and the means of three direct views.
     let z_crit = critical_z(0.01, 2 * TESTS_PER_COMPARE + 3);

@@ -39,7 +39,13 @@ pub fn li_implicit<S: Sampler>(
         }
         let next = si.spawn_ray(si.frame.to_world(bs.wi));
         sampler.count_ray();
-        let Some(hit) = scene.intersect(&next) else {
+        // The last ray of a bounded path only looks for emitters.
+        let hit = if settings.is_terminal(bounces) {
+            settings.terminal_hit(scene, &next)
+        } else {
+            scene.intersect(&next)
+        };
+        let Some(hit) = hit else {
             break;
         };
         si = scene.interaction(&next, &hit);

@@ -88,7 +88,13 @@ pub fn li_mis_from_surface<S: Sampler>(
         let wi_world = si.frame.to_world(bs.wi);
         let next = si.spawn_ray(wi_world);
         sampler.count_ray();
-        let Some(hit) = scene.intersect(&next) else {
+        // The last ray of a bounded path only looks for emitters.
+        let hit = if settings.is_terminal(bounces) {
+            settings.terminal_hit(scene, &next)
+        } else {
+            scene.intersect(&next)
+        };
+        let Some(hit) = hit else {
             break;
         };
         let prev = si;

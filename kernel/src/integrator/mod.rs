@@ -56,15 +56,62 @@ pub struct PathSettings {
     pub max_depth: i32,
     pub rr_depth: i32,
     pub rr_prob: f32,
+    /// Work the scene lets the integrators skip ([`Shortcuts::analyse`]); images are
+    /// bit-identical with and without them.
+    pub shortcuts: Shortcuts,
 }
 
 impl Default for PathSettings {
-    /// TinyRender's `path` defaults: unbounded depth, roulette from depth 5 with survival 0.95.
+    /// TinyRender's `path` defaults: unbounded depth, roulette from depth 5 with survival 0.95;
+    /// no shortcuts (they depend on the scene: see [`Shortcuts::analyse`]).
     fn default() -> Self {
         Self {
             max_depth: -1,
             rr_depth: 5,
             rr_prob: 0.95,
+            shortcuts: Shortcuts::NONE,
+        }
+    }
+}
+
+/// Emitter triangles up to which [`Shortcuts::terminal_emitter_test`] pays: testing them one
+/// by one must cost less than the closest-hit traversal it saves.
+pub const TERMINAL_TEST_MAX_EMITTERS: usize = 16;
+
+/// Work that a scene lets the integrators skip, found by [`Shortcuts::analyse`]. Each shortcut
+/// gives bit-identical images to the general code where it applies (tested in CI); what it
+/// skips is work whose result the scene makes known in advance.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Shortcuts {
+    /// The last ray of a bounded path (the one from the vertex at `max_depth`) only matters if
+    /// it lands on an emitter. When the scene has few emissive triangles and all of them are in
+    /// its emitter table, the ray is tested against those triangles alone first and the scene
+    /// is traversed only if one is hit; a non-emissive closest hit then ends the path without
+    /// computing its surface interaction. Exact: the watertight test's verdict for a triangle
+    /// does not depend on the rest of the scene and only widens with the ray's extent, so a ray
+    /// that misses every emissive triangle cannot have one as its closest hit.
+    pub terminal_emitter_test: bool,
+}
+
+impl Shortcuts {
+    /// The general code: nothing skipped.
+    pub const NONE: Self = Self {
+        terminal_emitter_test: false,
+    };
+
+    /// The shortcuts that apply to `scene` (one pass over its triangles).
+    #[must_use]
+    pub fn analyse(scene: &SceneView<'_>) -> Self {
+        let listed = scene.emitter_triangles.len();
+        let terminal_emitter_test = listed <= TERMINAL_TEST_MAX_EMITTERS
+            && scene
+                .triangle_materials
+                .iter()
+                .filter(|&&m| scene.material(m).is_emissive())
+                .count()
+                == listed;
+        Self {
+            terminal_emitter_test,
         }
     }
 }
@@ -79,6 +126,28 @@ impl PathSettings {
         } else {
             bounces <= self.max_depth as u32
         }
+    }
+
+    /// Whether the ray leaving scattering vertex `bounces` is the last of its path: the
+    /// vertex it finds may only contribute its emission.
+    #[inline]
+    #[must_use]
+    pub fn is_terminal(&self, bounces: u32) -> bool {
+        !self.allows(bounces + 1)
+    }
+
+    /// Traces the last ray of a path ([`Self::is_terminal`]) and returns its closest hit only if
+    /// that hit is on an emissive triangle: nothing else about it is needed. With
+    /// [`Shortcuts::terminal_emitter_test`] the emitters are tested first (see there).
+    #[inline]
+    #[must_use]
+    pub fn terminal_hit(&self, scene: &SceneView<'_>, ray: &Ray) -> Option<crate::scene::Hit> {
+        if self.shortcuts.terminal_emitter_test && !scene.may_hit_emitter(ray) {
+            return None;
+        }
+        let hit = scene.intersect(ray)?;
+        let material = scene.triangle_materials[hit.triangle as usize];
+        scene.material(material).is_emissive().then_some(hit)
     }
 
     /// Russian roulette after `bounces` scattering vertices, with the uniform number `u`.
