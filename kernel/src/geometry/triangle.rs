@@ -209,7 +209,33 @@ pub fn inset_barycentrics(b: [f32; 3], p: [Vec3; 3], ng: Vec3, p_err: Vec3) -> [
         return b;
     }
     let e = [p[2] - p[1], p[0] - p[2], p[1] - p[0]];
-    let longest = e[0].length().max(e[1].length()).max(e[2].length());
+    let longest = crate::math::sqrt(
+        e[0].length_squared()
+            .max(e[1].length_squared())
+            .max(e[2].length_squared()),
+    );
+    // Most points lie far inside: every margin below is at most
+    // `longest·(2·Σp_err + γ₂₅₆·longest)/area2` (each component of `n × e` is at most |e|), so
+    // a point above that bound, with 1% to spare for rounding, is returned without the
+    // per-edge work. The result is the same as the full computation's.
+    let bound = longest * (2.0 * (p_err.x + p_err.y + p_err.z) + gamma(256) * longest) / area2;
+    if b[0].min(b[1]).min(b[2]) >= 1.01 * bound {
+        return b;
+    }
+    inset_with_margins(b, e, longest, area2, ng, p_err)
+}
+
+/// [`inset_barycentrics`] from its edge vectors, longest edge and doubled area, without the
+/// fast acceptance (kept separate so a test can check that the two agree).
+#[inline]
+fn inset_with_margins(
+    b: [f32; 3],
+    e: [Vec3; 3],
+    longest: f32,
+    area2: f32,
+    ng: Vec3,
+    p_err: Vec3,
+) -> [f32; 3] {
     let mut beta = [0.0f32; 3];
     for (m, e) in beta.iter_mut().zip(e) {
         let dist_err = 2.0 * ng.cross(e).abs().dot(p_err);
@@ -294,6 +320,47 @@ mod tests {
         let c = inset_barycentrics([1.0, 0.0, 0.0], p, Vec3::Z, Vec3::splat(1.0));
         assert!(c.iter().all(|&x| x > 0.1), "{c:?}");
         assert!((c.iter().sum::<f32>() - 1.0).abs() < 1e-6, "{c:?}");
+    }
+
+    #[test]
+    fn inset_fast_acceptance_agrees_with_the_margins() {
+        // Random triangles (some thin), points inside, near and on edges, and error bounds
+        // from tiny to large: the fast path must return what the full computation returns.
+        let mut state = 0x1234_5678_9abc_def0u64;
+        let mut rnd = || {
+            state = crate::sampler::mix64(state.wrapping_add(0x9E37_79B9_7F4A_7C15));
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut fast = 0;
+        for _ in 0..200_000 {
+            let scale = 10f32.powf(rnd() * 8.0 - 4.0);
+            let mut v = || Vec3::new(rnd(), rnd(), rnd()) * scale;
+            let p = [v(), v(), v()];
+            let ng = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            let (x, y) = (rnd().powi(4), rnd().powi(4));
+            let b = if x + y <= 1.0 {
+                [1.0 - x - y, x, y]
+            } else {
+                [0.0, 1.0 - y, y]
+            };
+            let p_err = Vec3::new(rnd(), rnd(), rnd()) * scale * 10f32.powf(-7.0 + rnd() * 6.0);
+            let area2 = (p[1] - p[0]).cross(p[2] - p[0]).length();
+            if !(area2 > 0.0 && area2.is_finite()) || ng == Vec3::ZERO {
+                continue;
+            }
+            let e = [p[2] - p[1], p[0] - p[2], p[1] - p[0]];
+            let longest = e[0].length().max(e[1].length()).max(e[2].length());
+            let full = inset_with_margins(b, e, longest, area2, ng, p_err);
+            let got = inset_barycentrics(b, p, ng, p_err);
+            assert_eq!(
+                got.map(f32::to_bits),
+                full.map(f32::to_bits),
+                "{p:?} {b:?} {p_err:?}"
+            );
+            fast += usize::from(got == b);
+        }
+        // Both outcomes were exercised.
+        assert!(fast > 10_000 && fast < 190_000, "{fast} unchanged");
     }
 
     #[test]
