@@ -63,54 +63,40 @@ impl LoadedScene {
         Shortcuts::analyse(&self.data.view())
     }
 
-    /// Bake settings of a `gi` scene (path settings and samples per vertex); other scenes get
-    /// TinyRender's `gi` defaults (maxDepth 5, rrDepth 5, rrProb 0.95, 100 samples). With the
-    /// scene's [`Self::shortcuts`].
-    #[must_use]
-    pub fn gi_settings(&self) -> (PathSettings, u32) {
-        let (path, spv) = self.gi_settings_general();
-        (
-            PathSettings {
-                shortcuts: self.shortcuts(),
-                ..path
-            },
-            spv,
-        )
-    }
-
-    fn gi_settings_general(&self) -> (PathSettings, u32) {
-        match self.file.renderer {
-            RendererDesc::Gi {
-                path,
-                samples_by_vertex,
-            } => (path.into(), samples_by_vertex),
-            RendererDesc::Path { .. } => (
-                PathSettings {
-                    max_depth: 5,
-                    rr_depth: 5,
-                    rr_prob: 0.95,
-                    shortcuts: Shortcuts::NONE,
-                },
-                100,
-            ),
+    /// Kernel path settings from the file's, with the scene's [`Self::shortcuts`].
+    fn path_for(&self, desc: PathDesc) -> PathSettings {
+        PathSettings {
+            shortcuts: self.shortcuts(),
+            ..desc.into()
         }
     }
 
-    /// The integrator, path settings (with the scene's [`Self::shortcuts`]) and spp of an
-    /// offline (`path`) scene.
+    /// Bake settings of a `gi` scene (path settings and samples per vertex); other scenes get
+    /// TinyRender's `gi` defaults (maxDepth 5, rrDepth 5, rrProb 0.95, 100 samples).
+    #[must_use]
+    pub fn gi_settings(&self) -> (PathSettings, u32) {
+        let (desc, spv) = match self.file.renderer {
+            RendererDesc::Gi {
+                path,
+                samples_by_vertex,
+            } => (path, samples_by_vertex),
+            RendererDesc::Path { .. } => (
+                PathDesc {
+                    max_depth: 5,
+                    rr_depth: 5,
+                    rr_prob: 0.95,
+                },
+                100,
+            ),
+        };
+        (self.path_for(desc), spv)
+    }
+
+    /// The integrator, path settings and spp of an offline (`path`) scene.
     ///
     /// # Errors
     /// For a real-time scene, which is not rendered by a path tracer.
     pub fn path_settings(&self) -> Result<(Integrator, PathSettings, u32)> {
-        let (integrator, path, spp) = self.path_settings_general()?;
-        let path = PathSettings {
-            shortcuts: self.shortcuts(),
-            ..path
-        };
-        Ok((integrator, path, spp))
-    }
-
-    fn path_settings_general(&self) -> Result<(Integrator, PathSettings, u32)> {
         match self.file.renderer {
             RendererDesc::Path {
                 explicit,
@@ -122,7 +108,7 @@ impl LoadedScene {
                 } else {
                     Integrator::PathImplicit
                 },
-                path.into(),
+                self.path_for(path),
                 spp,
             )),
             RendererDesc::Gi { .. } => Err(Error::in_file(

@@ -55,7 +55,7 @@ pub fn li_explicit_from_surface<S: Sampler>(
             }
         }
         // The next vertex only matters if its direct lighting is within the depth limit.
-        if !settings.allows(bounces + 1) {
+        if settings.is_terminal(bounces) {
             break;
         }
         let Some(bs) = bsdf.sample(si.wo, u_bsdf, TransportMode::Radiance) else {
