@@ -239,6 +239,11 @@ fn analysis_allows_the_terminal_test_only_when_it_is_exact_and_cheap() {
     // could land on it without the test seeing it, so no shortcut.
     let (t, c) = uniform_table(2, 1);
     assert!(!Shortcuts::analyse(&room.view(&t, &c)).terminal_emitter_test);
+    // As many entries as emissive triangles, but one of them is the floor: emitter 3 is
+    // still missing, so no shortcut (a count alone would be fooled).
+    let (t, c) = (vec![1, 2], vec![0.5, 1.0]);
+    assert!(room.view(&t, &c).validate().is_ok());
+    assert!(!Shortcuts::analyse(&room.view(&t, &c)).terminal_emitter_test);
     // At the limit, and one quad beyond it.
     let lights = TERMINAL_TEST_MAX_EMITTERS / 2;
     let room = Room::new(lights);

@@ -99,17 +99,26 @@ impl Shortcuts {
         terminal_emitter_test: false,
     };
 
-    /// The shortcuts that apply to `scene` (one pass over its triangles).
+    /// The shortcuts that apply to `scene` (one pass over its triangles). A scene that fails
+    /// [`SceneView::validate`] gets none.
     #[must_use]
     pub fn analyse(scene: &SceneView<'_>) -> Self {
-        let listed = scene.emitter_triangles.len();
-        let terminal_emitter_test = listed <= TERMINAL_TEST_MAX_EMITTERS
-            && scene
-                .triangle_materials
-                .iter()
-                .filter(|&&m| scene.material(m).is_emissive())
-                .count()
-                == listed;
+        if scene.validate().is_err() {
+            return Self::NONE;
+        }
+        let emits = |t: u32| {
+            let material = scene.triangle_materials[t as usize];
+            scene.material(material).is_emissive()
+        };
+        // The table lists distinct triangles (validate checks they ascend), so when all of
+        // them emit and there are as many as emissive triangles, it lists every one.
+        let listed = scene.emitter_triangles;
+        let emissive = (0..scene.triangles.len() as u32)
+            .filter(|&t| emits(t))
+            .count();
+        let terminal_emitter_test = listed.len() <= TERMINAL_TEST_MAX_EMITTERS
+            && listed.iter().all(|&t| emits(t))
+            && emissive == listed.len();
         Self {
             terminal_emitter_test,
         }
