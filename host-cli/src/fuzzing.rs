@@ -109,7 +109,7 @@ pub fn obj(obj: &[u8], mtl: &[u8]) -> Outcome {
             let n = scene.triangles.len();
             assert!(n > 0, "scene without triangles accepted");
             assert_eq!(scene.bvh_prim_order.len(), n);
-            assert!(!scene.bvh_nodes.is_empty() && scene.bvh_nodes.len() < 2 * n);
+            assert!(!scene.bvh_nodes.is_empty() && scene.bvh_nodes.len() <= n);
             assert!(scene.positions.iter().all(|p| p.is_finite()));
             assert!(scene.emitter_cdf.iter().all(|c| c.is_finite()));
             assert_eq!(scene.view().validate(), Ok(()));

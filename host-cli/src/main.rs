@@ -330,7 +330,7 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     let view = scene.data.view();
     if !a.quiet {
         eprintln!(
-            "ember: {} triangles ({} BVH nodes in {:.1} ms, {:.0} bytes/triangle), {} emitters, {width}x{height}, {spp} spp, {integrator:?}, maxDepth {}",
+            "ember: {} triangles ({} 4-wide BVH nodes in {:.1} ms, {:.0} bytes/triangle), {} emitters, {width}x{height}, {spp} spp, {integrator:?}, maxDepth {}",
             scene.data.triangles.len(),
             scene.data.bvh_nodes.len(),
             scene.data.bvh_build_seconds * 1e3,

@@ -8,7 +8,7 @@
 
 use crate::error::{Error, Result};
 use ember_kernel::bsdf::{Bsdf, Diffuse, Phong};
-use ember_kernel::bvh::{self, Bvh, BvhNode};
+use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
 use ember_kernel::geometry::Aabb;
 use ember_kernel::scene::{Material, SceneView};
 use ember_kernel::Rgb;
@@ -46,7 +46,8 @@ pub struct SceneData {
     pub emitter_cdf: Vec<f32>,
     /// Number of emitters (objects whose first face is emissive).
     pub emitter_count: usize,
-    pub bvh_nodes: Vec<BvhNode>,
+    /// The four-wide BVH the renderer traces (the binary build is collapsed and dropped).
+    pub bvh_nodes: Vec<WideNode>,
     pub bvh_prim_order: Vec<u32>,
     /// Non-fatal remarks about the input (unsupported MTL features and the like).
     pub warnings: Vec<String>,
@@ -755,7 +756,8 @@ impl SceneData {
         Ok(())
     }
 
-    /// Builds the BVH over all triangles and trims the node array to what the build used.
+    /// Builds the BVH over all triangles, collapses it to the four-wide tree the renderer
+    /// traces and trims that to the nodes used.
     ///
     /// # Errors
     /// When the kernel's build refuses the input.
@@ -774,9 +776,11 @@ impl SceneData {
         let mut nodes = vec![BvhNode::default(); bvh::max_nodes(bounds.len())];
         let mut order = vec![0u32; bounds.len()];
         let used = bvh::build(&bounds, &mut nodes, &mut order).map_err(|e| e.to_string())?;
-        nodes.truncate(used);
-        nodes.shrink_to_fit();
-        self.bvh_nodes = nodes;
+        let mut wide = vec![WideNode::default(); bvh::max_wide_nodes(used)];
+        let used = bvh::collapse(&nodes[..used], &mut wide).map_err(|e| e.to_string())?;
+        wide.truncate(used);
+        wide.shrink_to_fit();
+        self.bvh_nodes = wide;
         self.bvh_prim_order = order;
         self.bvh_build_seconds = start.elapsed().as_secs_f64();
         Ok(())
@@ -793,10 +797,11 @@ impl SceneData {
             materials: &self.materials,
             emitter_triangles: &self.emitter_triangles,
             emitter_cdf: &self.emitter_cdf,
-            bvh: Bvh {
+            bvh: WideBvh {
                 nodes: &self.bvh_nodes,
                 prim_order: &self.bvh_prim_order,
-            },
+            }
+            .into(),
         }
     }
 

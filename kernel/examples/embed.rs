@@ -129,7 +129,8 @@ fn main() {
         bvh: Bvh {
             nodes: &nodes,
             prim_order: &order,
-        },
+        }
+        .into(),
     };
     scene.validate().expect("consistent scene");
 

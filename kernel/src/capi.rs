@@ -425,7 +425,7 @@ unsafe fn scene_view<'a>(
         materials: &table[..g.materials.len()],
         emitter_triangles,
         emitter_cdf,
-        bvh: Bvh { nodes, prim_order },
+        bvh: Bvh { nodes, prim_order }.into(),
     };
     view.validate().map_err(|_| EMBER_ERROR_INVALID_SCENE)?;
     Ok(view)

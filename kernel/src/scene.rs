@@ -1,7 +1,7 @@
 //! The scene as borrowed slices: what every integrator reads.
 
 use crate::bsdf::Bsdf;
-use crate::bvh::Bvh;
+use crate::bvh::SceneBvh;
 use crate::geometry::{inset_barycentrics, triangle_point, Ray, WatertightRay};
 use crate::math::Frame;
 use crate::Rgb;
@@ -39,7 +39,7 @@ pub struct SceneView<'a> {
     pub materials: &'a [Material],
     pub emitter_triangles: &'a [u32],
     pub emitter_cdf: &'a [f32],
-    pub bvh: Bvh<'a>,
+    pub bvh: SceneBvh<'a>,
 }
 
 /// Why a [`SceneView`] is not consistent; checked once by [`SceneView::validate`] so the hot
@@ -193,7 +193,7 @@ impl<'a> SceneView<'a> {
                 return Err(SceneError::EmitterCdf { entry: i });
             }
         }
-        for (i, &t) in self.bvh.prim_order.iter().enumerate() {
+        for (i, &t) in self.bvh.prim_order().iter().enumerate() {
             if t as usize >= self.triangles.len() {
                 return Err(SceneError::BvhPrimitive { entry: i, index: t });
             }

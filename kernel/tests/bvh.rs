@@ -1,8 +1,11 @@
 //! BVH correctness: structure of the built tree, closest-hit and any-hit traversal against
-//! brute force, watertightness on closed and open meshes, and the build's error cases.
+//! brute force, watertightness on closed and open meshes, and the build's error cases; the
+//! four-wide collapse's structure, and its traversal making exactly the binary traversal's
+//! calls on every query.
 
 use ember_kernel::bvh::{
-    build, max_nodes, Bvh, BvhError, BvhNode, MAX_LEAF_PRIMS, TRAVERSAL_STACK,
+    build, collapse, max_nodes, max_wide_nodes, Bvh, BvhError, BvhNode, WideBvh, WideNode,
+    MAX_LEAF_PRIMS, TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH, WIDTH,
 };
 use ember_kernel::geometry::{intersect_triangle, Aabb};
 use ember_kernel::glam::Vec3;
@@ -51,6 +54,7 @@ fn tri_bounds(t: &Tri) -> Aabb {
 struct Built {
     nodes: Vec<BvhNode>,
     prim_order: Vec<u32>,
+    wide: Vec<WideNode>,
 }
 
 impl Built {
@@ -61,7 +65,19 @@ impl Built {
         let used = build(&bounds, &mut nodes, &mut prim_order).expect("build");
         assert!(used >= 1 && used <= max_nodes(tris.len()), "used {used}");
         nodes.truncate(used);
-        Self { nodes, prim_order }
+        Self::with_nodes(nodes, prim_order)
+    }
+
+    /// Collapses `nodes` to the wide tree as well.
+    fn with_nodes(nodes: Vec<BvhNode>, prim_order: Vec<u32>) -> Self {
+        let mut wide = vec![WideNode::default(); max_wide_nodes(nodes.len())];
+        let used = collapse(&nodes, &mut wide).expect("collapse");
+        wide.truncate(used);
+        Self {
+            nodes,
+            prim_order,
+            wide,
+        }
     }
 
     fn bvh(&self) -> Bvh<'_> {
@@ -70,6 +86,151 @@ impl Built {
             prim_order: &self.prim_order,
         }
     }
+
+    fn wide_bvh(&self) -> WideBvh<'_> {
+        WideBvh {
+            nodes: &self.wide,
+            prim_order: &self.prim_order,
+        }
+    }
+}
+
+/// Checks the wide tree against the binary one it was collapsed from: children after their
+/// parent, each wide node reached once, lanes carrying the binary children's exact boxes,
+/// leaves covering every primitive slot once, each visiting order a permutation of the lanes,
+/// and no deeper than the traversal stack allows. Returns the wide depth.
+fn validate_wide(b: &Built) -> usize {
+    let (wide, n) = (&b.wide, b.prim_order.len());
+    assert!(!wide.is_empty() && wide.len() <= max_wide_nodes(b.nodes.len()));
+    let binary_leaves: Vec<(u32, u16, [f32; 3], [f32; 3])> = b
+        .nodes
+        .iter()
+        .filter(|n| n.is_leaf())
+        .map(|n| (n.offset, n.count, n.min, n.max))
+        .collect();
+    let mut wide_leaves = Vec::new();
+    let mut covered = vec![false; n];
+    let mut depth = vec![0usize; wide.len()];
+    let mut reached = vec![false; wide.len()];
+    reached[0] = true;
+    depth[0] = 1;
+    for (i, node) in wide.iter().enumerate() {
+        assert!(reached[i], "wide node {i} unreachable");
+        for order in node.order {
+            let mut lanes: Vec<u8> = (0..WIDTH).map(|p| order >> (2 * p) & 3).collect();
+            lanes.sort_unstable();
+            assert_eq!(lanes, [0, 1, 2, 3], "node {i}: order {order:#010b}");
+        }
+        for lane in 0..WIDTH {
+            let lo = [0, 1, 2].map(|a| node.lo[a][lane]);
+            let hi = [0, 1, 2].map(|a| node.hi[a][lane]);
+            if node.is_leaf(lane) {
+                let first = node.child[lane] & !WIDE_LEAF;
+                let count = node.count[lane];
+                if count == 0 {
+                    // Unused lane: an empty box.
+                    assert!(
+                        lo.iter().zip(&hi).all(|(l, h)| l > h),
+                        "node {i} lane {lane}"
+                    );
+                    continue;
+                }
+                let first = first as usize;
+                for (slot, c) in covered[first..first + usize::from(count)]
+                    .iter_mut()
+                    .enumerate()
+                {
+                    assert!(!*c, "prim slot {} in two wide leaves", first + slot);
+                    *c = true;
+                }
+                wide_leaves.push((first as u32, count, lo, hi));
+            } else {
+                let c = node.child[lane] as usize;
+                assert!(c > i && c < wide.len(), "node {i} lane {lane}: child {c}");
+                assert!(!reached[c], "wide node {c} reached twice");
+                reached[c] = true;
+                depth[c] = depth[i] + 1;
+                // The lane's box is the union of the child's lanes.
+                let child = &wide[c];
+                for a in 0..3 {
+                    let used = (0..WIDTH).filter(|&l| !(child.is_leaf(l) && child.count[l] == 0));
+                    let (cl, ch) = used.fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), k| {
+                        (l.min(child.lo[a][k]), h.max(child.hi[a][k]))
+                    });
+                    assert!(lo[a] <= cl && hi[a] >= ch, "node {i} lane {lane} axis {a}");
+                }
+            }
+        }
+    }
+    assert!(
+        covered.iter().all(|&c| c) || n == 0,
+        "prims in no wide leaf"
+    );
+    // The same leaves as the binary tree, with the same boxes.
+    let mut a = binary_leaves;
+    let mut w = wide_leaves;
+    let key = |l: &(u32, u16, [f32; 3], [f32; 3])| (l.0, l.1);
+    a.sort_by_key(key);
+    w.sort_by_key(key);
+    assert_eq!(a, w, "wide leaves differ from binary leaves");
+    let max = depth.into_iter().max().unwrap_or(1);
+    assert!(max <= WIDE_MAX_DEPTH, "wide depth {max} > {WIDE_MAX_DEPTH}");
+    max
+}
+
+/// The `(primitive, t_max)` calls a traversal makes, with a real triangle test as `hit`.
+fn calls<T>(
+    traverse: T,
+    tris: &[Tri],
+    o: Vec3,
+    d: Vec3,
+    any_hit: bool,
+    t_max: f32,
+) -> (bool, Vec<(u32, u32)>)
+where
+    T: Fn(bool, f32, &mut dyn FnMut(u32, f32) -> Option<f32>) -> bool,
+{
+    let mut log = Vec::new();
+    let hit = traverse(any_hit, t_max, &mut |prim, tmax| {
+        log.push((prim, tmax.to_bits()));
+        let t = &tris[prim as usize];
+        intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)
+    });
+    (hit, log)
+}
+
+/// Asserts that the wide traversal makes exactly the binary traversal's calls, in order, for a
+/// closest-hit query and an any-hit query; returns the number of calls of the closest-hit one.
+fn assert_same_calls(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> usize {
+    let binary = b.bvh();
+    let wide = b.wide_bvh();
+    let mut count = 0;
+    for any_hit in [false, true] {
+        let run_binary = |any: bool, t: f32, f: &mut dyn FnMut(u32, f32) -> Option<f32>| {
+            if any {
+                binary.traverse::<true, _>(o, d, t, f)
+            } else {
+                binary.traverse::<false, _>(o, d, t, f)
+            }
+        };
+        let run_wide = |any: bool, t: f32, f: &mut dyn FnMut(u32, f32) -> Option<f32>| {
+            if any {
+                wide.traverse::<true, _>(o, d, t, f)
+            } else {
+                wide.traverse::<false, _>(o, d, t, f)
+            }
+        };
+        let expected = calls(run_binary, tris, o, d, any_hit, t_max);
+        let got = calls(run_wide, tris, o, d, any_hit, t_max);
+        assert_eq!(
+            got, expected,
+            "o={o} d={d} t_max={t_max} any_hit={any_hit}: wide traversal differs"
+        );
+        if !any_hit {
+            count = expected.1.len();
+        }
+    }
+    count
 }
 
 fn contains(outer: &Aabb, inner: &Aabb) -> bool {
@@ -401,6 +562,7 @@ fn check_queries(tris: &[Tri], b: &Built, rays: usize, seed: u64) {
         };
         let brute = brute_closest(tris, o, d);
         let fast = bvh_closest(b, tris, o, d, f32::INFINITY);
+        assert_same_calls(b, tris, o, d, f32::INFINITY);
         match (brute, fast) {
             (None, None) => {}
             (Some((bp, bt)), Some((fp, ft))) => {
@@ -432,6 +594,7 @@ fn check_queries(tris: &[Tri], b: &Built, rays: usize, seed: u64) {
             .map(|h| h.t)
             .fold(None, |m: Option<f32>, t| Some(m.map_or(t, |m| m.min(t))));
         let fast_occ = bvh_occluded(b, tris, o, d, t_max);
+        assert_same_calls(b, tris, o, d, t_max);
         if brute_occ.is_some() != fast_occ {
             // Only a hit within rounding of t_max may be seen by one and not the other.
             let near = brute_occ.is_some_and(|t| (t - t_max).abs() <= 1e-5 * t_max);
@@ -464,6 +627,7 @@ fn check_soup(tris: &[Tri], rays: usize, seed: u64) -> usize {
         depth <= TRAVERSAL_STACK,
         "tree depth {depth} exceeds the traversal stack"
     );
+    validate_wide(&b);
     check_queries(tris, &b, rays, seed);
     depth
 }
@@ -642,6 +806,9 @@ fn axis_parallel_rays_on_box_faces_are_not_lost() {
         if bvh_closest(b, tris, o, d, f32::INFINITY).is_none() {
             leaks.push(format!("{name} o={o} d={d}"));
         }
+        // Origins on box planes with zero direction components: the wide slab test's NaN
+        // handling must decide as the scalar one.
+        assert_same_calls(b, tris, o, d, f32::INFINITY);
     };
     // A strip of unit quads along x ∈ [−4, 4]; the ray runs down the shared edge x = 0.
     let strip: Vec<Tri> = (-4..4)
@@ -733,7 +900,14 @@ fn deep_unbalanced_tree_fits_the_traversal_stack() {
     let b = Built::new(&tris);
     // A depth-limited build may end in a large leaf.
     let depth = validate_with(&tris, &b, tris.len());
+    let wide_depth = validate_wide(&b);
+    // Each wide level spans at least two binary levels.
+    assert!(
+        wide_depth <= depth.div_ceil(2),
+        "wide {wide_depth} for binary {depth}"
+    );
     let (o, d) = (Vec3::splat(0.5), Vec3::splat(-1.0).normalize());
+    assert!(assert_same_calls(&b, &tris, o, d, f32::INFINITY) > 0);
     let brute = brute_closest(&tris, o, d);
     assert!(brute.is_some());
     let fast = bvh_closest(&b, &tris, o, d, f32::INFINITY);
@@ -750,7 +924,94 @@ fn deep_unbalanced_tree_fits_the_traversal_stack() {
         let brute = brute_closest(&tris, o, d).map(|h| h.1);
         let fast = bvh_closest(&b, &tris, o, d, f32::INFINITY).map(|h| h.1);
         assert_eq!(fast, brute, "o={o} d={d}");
+        assert_same_calls(&b, &tris, o, d, f32::INFINITY);
     }
+}
+
+/// The collapse of the smallest trees, its refusals of bad input, and the wide traversal on
+/// degenerate rays (zero direction components, origins on box planes, NaN) against binary.
+#[test]
+fn wide_collapse_edge_cases() {
+    // Empty scene: a root with no lanes; nothing is called.
+    let empty = Built::new(&[]);
+    assert_eq!(empty.wide.len(), 1);
+    validate_wide(&empty);
+    assert!(!empty.wide_bvh().traverse::<false, _>(
+        Vec3::ZERO,
+        Vec3::X,
+        f32::INFINITY,
+        |_, _| panic!("called")
+    ));
+    let nan = Vec3::splat(f32::NAN);
+    assert!(!empty
+        .wide_bvh()
+        .traverse::<false, _>(nan, nan, f32::INFINITY, |_, _| panic!("called")));
+    // One leaf, two leaves, and a small soup: same calls as binary.
+    let soup = random_soup(40, 5);
+    for n in [1, 2, 3, 5, 40] {
+        let tris = &soup[..n];
+        let b = Built::new(tris);
+        validate_wide(&b);
+        let mut rng = Rng::new(n as u64);
+        let mut total = 0;
+        for _ in 0..200 {
+            let o = rng.vec(-1.5, 1.5);
+            let t = &tris[rng.index(n)];
+            let d = (rng.on_triangle(t) - o).normalize_or(Vec3::X);
+            total += assert_same_calls(&b, tris, o, d, f32::INFINITY);
+        }
+        assert!(total >= 200, "{n} triangles: only {total} calls");
+    }
+    // A box of axis-aligned quads: rays along the axes from points on the faces and edges,
+    // with signed zero directions.
+    let (verts, faces) = icosphere(1);
+    let sphere: Vec<Tri> = faces.iter().map(|f| f.map(|i| verts[i as usize])).collect();
+    let b = Built::new(&sphere);
+    let bounds = sphere.iter().map(tri_bounds).fold(Aabb::EMPTY, Aabb::union);
+    for o in [
+        Vec3::ZERO,
+        bounds.min,
+        bounds.max,
+        Vec3::new(bounds.min.x, 0.0, 0.0),
+        Vec3::new(0.0, bounds.max.y, 0.0),
+        b.nodes[1].bounds().min,
+        b.nodes[1].bounds().max,
+    ] {
+        for d in [
+            Vec3::X,
+            Vec3::NEG_X,
+            Vec3::new(0.0, -0.0, 1.0),
+            Vec3::new(-0.0, 1.0, -0.0),
+            Vec3::new(1.0, 1.0, 0.0).normalize(),
+            Vec3::new(-0.0, -1.0, -1.0).normalize(),
+            nan,
+        ] {
+            assert_same_calls(&b, &sphere, o, d, f32::INFINITY);
+            assert_same_calls(&b, &sphere, o, d, 0.5);
+        }
+    }
+    // Refusals: too little room, children that do not follow their parent.
+    let b = Built::new(&soup);
+    let needed = max_wide_nodes(b.nodes.len());
+    let mut small = vec![WideNode::default(); needed - 1];
+    assert_eq!(
+        collapse(&b.nodes, &mut small),
+        Err(BvhError::NodeCapacity {
+            needed,
+            given: needed - 1
+        })
+    );
+    let mut out = vec![WideNode::default(); needed];
+    let mut backwards = b.nodes.clone();
+    let interior = backwards.iter().position(|n| !n.is_leaf()).unwrap();
+    backwards[interior].offset = 0;
+    assert_eq!(collapse(&backwards, &mut out), Err(BvhError::Malformed));
+    let mut truncated = b.nodes.clone();
+    truncated.truncate(3);
+    assert_eq!(
+        collapse(&truncated, &mut vec![WideNode::default(); 8]),
+        Err(BvhError::Malformed)
+    );
 }
 
 #[test]
@@ -789,10 +1050,7 @@ fn build_errors_and_empty_scene() {
     let mut nodes = vec![BvhNode::default(); 1];
     assert_eq!(build(&[], &mut nodes, &mut []), Ok(1));
     assert!(nodes[0].bounds().is_empty());
-    let empty = Built {
-        nodes,
-        prim_order: Vec::new(),
-    };
+    let empty = Built::with_nodes(nodes, Vec::new());
     validate(&[], &empty);
     let mut called = false;
     assert!(!empty

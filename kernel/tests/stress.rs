@@ -417,7 +417,8 @@ fn closed_box_does_not_leak_at_any_scale_or_offset() {
             bvh: Bvh {
                 nodes: &nodes[..used],
                 prim_order: &order,
-            },
+            }
+            .into(),
         };
         scene.validate().unwrap();
         let label = format!("scale {scale:e}, offset {offset:e}");
@@ -517,7 +518,8 @@ impl EmitterScene {
             bvh: Bvh {
                 nodes: &[],
                 prim_order: &[],
-            },
+            }
+            .into(),
         }
     }
 }

@@ -14,7 +14,9 @@
 //! - `shadow`: segments between two surface points chosen uniformly by area, both ends pulled
 //!   in by 1e-4 of the box diagonal (any-hit; most are blocked by the sphere).
 //!
-//! Build time includes the triangle bounds and the node and index arrays, as `ember` builds.
+//! Build time includes the triangle bounds, the node and index arrays and the four-wide
+//! collapse, as `ember` builds. Ray sets are traced through the four-wide tree the renderer uses
+//! (`wide/...`) and through the binary tree as built (`binary/...`).
 //! Before the benchmarks the kernel scene memory per triangle is printed, and after them (under
 //! `cargo bench`) a summary of Mrays/s per scene with the ratio to the 1k scene.
 //!
@@ -24,7 +26,7 @@
 
 use criterion::{BatchSize, BenchmarkId, Criterion, SamplingMode, Throughput};
 use ember_kernel::bsdf::{Bsdf, Diffuse};
-use ember_kernel::bvh::{self, Bvh, BvhNode};
+use ember_kernel::bvh::{self, Bvh, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
 use ember_kernel::geometry::{Aabb, Ray};
 use ember_kernel::sampler::mix64;
@@ -102,6 +104,7 @@ struct Scene {
     triangle_materials: Vec<u32>,
     materials: Vec<Material>,
     nodes: Vec<BvhNode>,
+    wide: Vec<WideNode>,
     prim_order: Vec<u32>,
     build_seconds: f64,
 }
@@ -119,15 +122,23 @@ fn triangle_bounds(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Aabb> {
         .collect()
 }
 
-/// Bounds, node and index arrays and the build, as the host does it; returns the trimmed nodes.
-fn build_bvh(positions: &[Vec3], triangles: &[[u32; 3]]) -> (Vec<BvhNode>, Vec<u32>) {
+/// Bounds, node and index arrays, the build and the four-wide collapse, as the host does it;
+/// returns the trimmed binary and wide nodes.
+fn build_bvh(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+) -> (Vec<BvhNode>, Vec<WideNode>, Vec<u32>) {
     let bounds = triangle_bounds(positions, triangles);
     let mut nodes = vec![BvhNode::default(); bvh::max_nodes(bounds.len())];
     let mut order = vec![0u32; bounds.len()];
     let used = bvh::build(&bounds, &mut nodes, &mut order).expect("BVH build");
     nodes.truncate(used);
     nodes.shrink_to_fit();
-    (nodes, order)
+    let mut wide = vec![WideNode::default(); bvh::max_wide_nodes(used)];
+    let used = bvh::collapse(&nodes, &mut wide).expect("BVH collapse");
+    wide.truncate(used);
+    wide.shrink_to_fit();
+    (nodes, wide, order)
 }
 
 impl Scene {
@@ -204,7 +215,7 @@ impl Scene {
         }
         let normals = positions.iter().map(|p| p.normalize_or_zero()).collect();
         let start = Instant::now();
-        let (nodes, prim_order) = build_bvh(&positions, &triangles);
+        let (nodes, wide, prim_order) = build_bvh(&positions, &triangles);
         let build_seconds = start.elapsed().as_secs_f64();
         Self {
             name,
@@ -217,12 +228,14 @@ impl Scene {
             positions,
             triangles,
             nodes,
+            wide,
             prim_order,
             build_seconds,
         }
     }
 
-    fn view(&self) -> SceneView<'_> {
+    /// The view the renderer traces: the four-wide tree, or with `binary` the tree as built.
+    fn view(&self, binary: bool) -> SceneView<'_> {
         SceneView {
             positions: &self.positions,
             normals: &self.normals,
@@ -231,9 +244,18 @@ impl Scene {
             materials: &self.materials,
             emitter_triangles: &[],
             emitter_cdf: &[],
-            bvh: Bvh {
-                nodes: &self.nodes,
-                prim_order: &self.prim_order,
+            bvh: if binary {
+                Bvh {
+                    nodes: &self.nodes,
+                    prim_order: &self.prim_order,
+                }
+                .into()
+            } else {
+                WideBvh {
+                    nodes: &self.wide,
+                    prim_order: &self.prim_order,
+                }
+                .into()
             },
         }
     }
@@ -303,11 +325,12 @@ impl Scene {
         rays
     }
 
-    /// Bytes of the data the kernel traverses: (nodes, triangle indices, positions, prim order).
+    /// Bytes of the data the renderer keeps and traverses: (wide nodes, triangle indices,
+    /// positions, prim order); the binary nodes are dropped after the collapse.
     fn bytes(&self) -> [usize; 4] {
         use std::mem::size_of_val;
         [
-            size_of_val(self.nodes.as_slice()),
+            size_of_val(self.wide.as_slice()),
             size_of_val(self.triangles.as_slice()),
             size_of_val(self.positions.as_slice()),
             size_of_val(self.prim_order.as_slice()),
@@ -332,11 +355,11 @@ fn print_memory(s: &Scene) {
     let [nodes, tris, pos, order] = s.bytes();
     let n = s.triangles.len() as f64;
     println!(
-        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1}); + normals {:.1} + material ids 4.0 for shading",
+        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} 4-wide BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1}); + normals {:.1} + material ids 4.0 for shading",
         s.name,
         s.triangles.len(),
         s.positions.len(),
-        s.nodes.len(),
+        s.wide.len(),
         s.build_seconds,
         (nodes + tris + pos + order) as f64 / n,
         nodes as f64 / n,
@@ -409,17 +432,19 @@ fn bench_rays(c: &mut Criterion) {
             .measurement_time(Duration::from_secs(3))
             .throughput(Throughput::Elements(RAYS as u64));
         for (i, (name, _)) in SCENES.iter().enumerate() {
-            g.bench_function(BenchmarkId::from_parameter(name), |b| {
-                let s = scene(i);
-                let view = s.view();
-                let rays = make(s);
-                assert_eq!(rays.len(), RAYS);
-                if shadow {
-                    b.iter(|| trace_shadow(&view, &rays));
-                } else {
-                    b.iter(|| trace_closest(&view, &rays));
-                }
-            });
+            for (layout, binary) in [("wide", false), ("binary", true)] {
+                g.bench_function(BenchmarkId::new(layout, name), |b| {
+                    let s = scene(i);
+                    let view = s.view(binary);
+                    let rays = make(s);
+                    assert_eq!(rays.len(), RAYS);
+                    if shadow {
+                        b.iter(|| trace_shadow(&view, &rays));
+                    } else {
+                        b.iter(|| trace_closest(&view, &rays));
+                    }
+                });
+            }
         }
         g.finish();
     }
@@ -433,11 +458,14 @@ fn summary() {
         return;
     }
     println!("\nsummary (one thread, best of 5 passes of {RAYS} rays; ratio to the first scene):");
-    for (set, make, shadow) in RAY_SETS {
+    for ((set, make, shadow), (layout, binary)) in RAY_SETS
+        .into_iter()
+        .flat_map(|r| [(r, ("wide", false)), (r, ("binary", true))])
+    {
         let mut first = None;
-        let mut line = format!("{set:<22}");
+        let mut line = format!("{:<29}", format!("{set} {layout}"));
         for s in &generated {
-            let view = s.view();
+            let view = s.view(binary);
             let rays = make(s);
             let best = (0..5)
                 .map(|_| {

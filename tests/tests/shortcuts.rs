@@ -218,7 +218,8 @@ impl Room {
             bvh: Bvh {
                 nodes: &self.nodes,
                 prim_order: &self.order,
-            },
+            }
+            .into(),
         }
     }
 }

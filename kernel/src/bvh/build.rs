@@ -39,6 +39,8 @@ pub enum BvhError {
     TooDeep,
     /// A triangle refers to a vertex that does not exist ([`build_triangles`]).
     VertexIndex { triangle: usize, index: u32 },
+    /// A binary tree given to [`super::collapse`] is not laid out as the build writes it.
+    Malformed,
 }
 
 impl core::fmt::Display for BvhError {
@@ -58,6 +60,7 @@ impl core::fmt::Display for BvhError {
             Self::VertexIndex { triangle, index } => {
                 write!(f, "triangle {triangle} refers to missing vertex {index}")
             }
+            Self::Malformed => write!(f, "not a binary BVH as the build writes it"),
         }
     }
 }

@@ -48,7 +48,10 @@ impl Bvh<'_> {
                             if ANY_HIT {
                                 return true;
                             }
-                            t_max = t;
+                            // Never farther: a hit test may round a distance just past the
+                            // `t_max` it was given, and a growing `t_max` would make the visit
+                            // depend on when a box is tested.
+                            t_max = t_max.min(t);
                         }
                     }
                 } else {

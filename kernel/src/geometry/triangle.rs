@@ -64,7 +64,7 @@ impl WatertightRay {
     /// Watertight ray–triangle intersection (Woop, Benthin and Wald, JCGT 2013, as in
     /// pbrt-v4): rays through a shared edge or vertex hit at least one of the triangles that
     /// share it, and `t` is accepted only when it is provably positive given the rounding error.
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn intersect(&self, t_max: f32, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<TriangleHit> {
         let [kx, ky, kz] = self.k;

@@ -9,7 +9,7 @@
 #![no_std]
 
 use ember_kernel::bsdf::{Bsdf, Diffuse, Phong};
-use ember_kernel::bvh::{self, Bvh, BvhNode};
+use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
 use ember_kernel::emitter::build_emitter_table;
 use ember_kernel::integrator::{
@@ -296,6 +296,7 @@ pub const QUADS: [Quad; 16] = [
 pub const VERTICES: usize = 4 * QUADS.len();
 pub const TRIANGLES: usize = 2 * QUADS.len();
 pub const BVH_NODES: usize = bvh::max_nodes(TRIANGLES);
+pub const WIDE_NODES: usize = bvh::max_wide_nodes(BVH_NODES);
 
 /// Surface points baked: (position, normal, material). Key `i` for point `i`.
 pub const BAKE_POINTS: [([f32; 3], [f32; 3], u32); 8] = [
@@ -334,7 +335,9 @@ pub struct Scene {
     pub emitter_triangles: [u32; TRIANGLES],
     pub emitter_cdf: [f32; TRIANGLES],
     pub emitter_count: usize,
-    pub bvh_nodes: [BvhNode; BVH_NODES],
+    /// The four-wide BVH the command line traces with (the C API traces the binary one; both
+    /// must give the golden hashes).
+    pub bvh_nodes: [WideNode; WIDE_NODES],
     pub bvh_node_count: usize,
     pub bvh_prim_order: [u32; TRIANGLES],
 }
@@ -361,7 +364,7 @@ impl Scene {
             emitter_triangles: [0; TRIANGLES],
             emitter_cdf: [0.0; TRIANGLES],
             emitter_count: 0,
-            bvh_nodes: [BvhNode::default(); BVH_NODES],
+            bvh_nodes: [WideNode::default(); WIDE_NODES],
             bvh_node_count: 0,
             bvh_prim_order: [0; TRIANGLES],
         };
@@ -385,13 +388,15 @@ impl Scene {
             &mut s.emitter_cdf,
         )
         .expect("emitter table");
-        s.bvh_node_count = bvh::build_triangles(
+        let mut binary = [BvhNode::default(); BVH_NODES];
+        let used = bvh::build_triangles(
             &s.positions,
             &s.triangles,
-            &mut s.bvh_nodes,
+            &mut binary,
             &mut s.bvh_prim_order,
         )
         .expect("BVH build");
+        s.bvh_node_count = bvh::collapse(&binary[..used], &mut s.bvh_nodes).expect("BVH collapse");
         s
     }
 
@@ -406,10 +411,11 @@ impl Scene {
             materials: &self.materials,
             emitter_triangles: &self.emitter_triangles[..self.emitter_count],
             emitter_cdf: &self.emitter_cdf[..self.emitter_count],
-            bvh: Bvh {
+            bvh: WideBvh {
                 nodes: &self.bvh_nodes[..self.bvh_node_count],
                 prim_order: &self.bvh_prim_order,
-            },
+            }
+            .into(),
         }
     }
 }

@@ -1,0 +1,370 @@
+//! Four-wide BVH: the binary build collapsed so that one node holds the boxes of up to four
+//! children, tested together by one SIMD slab test.
+//!
+//! Why: on small scenes such as the Cornell box a binary traversal spends most of its time on
+//! one data-dependent branch per box. A wide node answers four boxes with straight-line vector
+//! code and the tree has a third as many nodes.
+//!
+//! Same hits as the binary tree, by construction: each node stores, for each of the eight ray
+//! direction octants, the order in which the binary traversal would reach its children, and a
+//! deferred child is tested against the shrinking `t_max` when it is taken from the stack, as
+//! the binary traversal tests a box when it reaches it. A child's box lies inside the boxes of
+//! the binary nodes that were collapsed above it, so the binary traversal reaches a leaf exactly
+//! when its own box passes, and both visit the same leaves in the same order.
+//!
+//! Determinism: the slab test uses subtraction, multiplication, comparisons, selects and
+//! NaN-free `min`/`max`, which every glam backend (SSE2, NEON, wasm SIMD, scalar) computes
+//! identically to the scalar [`crate::geometry::Aabb::hit`].
+
+// The one use of glam's SIMD `Vec4` in the kernel (clippy.toml bans it for its dot products
+// and fused multiply-adds): only lane-wise operations that are exact on every backend are used
+// here, and scripts/determinism.sh checks SSE2, NEON, wasm32 and scalar builds against one hash.
+#![allow(clippy::disallowed_types)]
+
+use super::{BvhError, BvhNode, MAX_DEPTH};
+use crate::math::gamma;
+use glam::{Vec3, Vec4};
+
+/// Children per node.
+pub const WIDTH: usize = 4;
+/// Deepest wide level. The collapse opens binary nodes breadth-first, so each wide level spans
+/// at least two binary levels of a tree at most [`MAX_DEPTH`] deep.
+pub const WIDE_MAX_DEPTH: usize = MAX_DEPTH.div_ceil(2);
+/// Traversal stack capacity: at most `WIDTH − 1` deferred children per level plus the
+/// `WIDTH` entries of the node being expanded (each lane is written, entered or not).
+pub const WIDE_TRAVERSAL_STACK: usize = (WIDTH - 1) * WIDE_MAX_DEPTH + WIDTH;
+/// Marks a leaf child in [`WideNode::child`]; the bits below it are the first index into the
+/// primitive order.
+pub const WIDE_LEAF: u32 = 1 << 31;
+
+/// One 128-byte wide node (`#[repr(C)]`; structure of arrays, so that each axis loads as one
+/// vector). Unused lanes hold empty boxes and empty leaves.
+#[repr(C, align(16))]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WideNode {
+    /// `lo[axis][lane]`: lower corners of the child boxes.
+    pub lo: [[f32; WIDTH]; 3],
+    /// `hi[axis][lane]`: upper corners of the child boxes.
+    pub hi: [[f32; WIDTH]; 3],
+    /// Interior child: index of its wide node. Leaf child: [`WIDE_LEAF`] | first index into
+    /// the primitive order.
+    pub child: [u32; WIDTH],
+    /// Number of primitives of a leaf child (0 for interior children and unused lanes).
+    pub count: [u16; WIDTH],
+    /// For each octant `(d.x < 0) | (d.y < 0) << 1 | (d.z < 0) << 2` (signs of `1/d`), the
+    /// lanes in visiting order, two bits each, first in the low bits.
+    pub order: [u8; 8],
+}
+
+const _: () = assert!(core::mem::size_of::<WideNode>() == 128);
+
+impl Default for WideNode {
+    fn default() -> Self {
+        Self {
+            lo: [[f32::INFINITY; WIDTH]; 3],
+            hi: [[f32::NEG_INFINITY; WIDTH]; 3],
+            child: [WIDE_LEAF; WIDTH],
+            count: [0; WIDTH],
+            // Identity order: lanes 0, 1, 2, 3.
+            order: [0b11_10_01_00; 8],
+        }
+    }
+}
+
+impl WideNode {
+    /// Whether `lane` holds a leaf (or is unused).
+    #[inline]
+    #[must_use]
+    pub fn is_leaf(&self, lane: usize) -> bool {
+        self.child[lane] & WIDE_LEAF != 0
+    }
+}
+
+/// Wide nodes the caller must provide for a binary tree of `binary_nodes` nodes: every wide
+/// node except a root over a single leaf stands for at least one binary interior node.
+#[must_use]
+pub const fn max_wide_nodes(binary_nodes: usize) -> usize {
+    if binary_nodes < 3 {
+        1
+    } else {
+        binary_nodes / 2
+    }
+}
+
+/// Collapses the binary tree `binary` (as written by [`super::build`]) into `wide`, keeping
+/// its leaves and primitive order; returns the number of wide nodes written (breadth-first,
+/// root first, so every child comes after its parent).
+///
+/// # Errors
+/// [`BvhError::NodeCapacity`] if `wide` is shorter than [`max_wide_nodes`];
+/// [`BvhError::TooManyPrims`] if a leaf starts at or beyond [`WIDE_LEAF`];
+/// [`BvhError::Malformed`] if `binary` is not a tree as the build writes it.
+pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhError> {
+    let needed = max_wide_nodes(binary.len());
+    if wide.len() < needed {
+        return Err(BvhError::NodeCapacity {
+            needed,
+            given: wide.len(),
+        });
+    }
+    wide[0] = WideNode::default();
+    let Some(root) = binary.first() else {
+        return Ok(1);
+    };
+    if root.is_leaf() || binary.len() == 1 {
+        // A single leaf, or the box-less node of an empty scene (no lanes).
+        if root.is_leaf() {
+            wide[0] = WideNode::default();
+            set_lane(&mut wide[0], 0, root, leaf_reference(root)?);
+        }
+        return Ok(1);
+    }
+    let children = |b: u32| -> Result<[u32; 2], BvhError> {
+        let node = binary.get(b as usize).ok_or(BvhError::Malformed)?;
+        let kids = [b + 1, node.offset];
+        // Pre-order layout: both children come after their parent and exist.
+        if kids.iter().any(|&k| k <= b || k as usize >= binary.len()) {
+            return Err(BvhError::Malformed);
+        }
+        Ok(kids)
+    };
+    // The output doubles as the work queue: a wide node waiting to be filled holds the index
+    // of its binary source in `child[0]`.
+    wide[0].child[0] = 0;
+    let mut used = 1usize;
+    let mut next = 0usize;
+    while next < used {
+        let source = wide[next].child[0];
+        // Open binary nodes breadth-first until there are four children or only leaves.
+        let mut lanes = [0u32; WIDTH];
+        lanes[..2].copy_from_slice(&children(source)?);
+        let mut n = 2;
+        while n < WIDTH {
+            let Some(open) = (0..n).find(|&l| !binary[lanes[l] as usize].is_leaf()) else {
+                break;
+            };
+            let parent = lanes[open];
+            lanes.copy_within(open + 1..n, open);
+            lanes[n - 1..n + 1].copy_from_slice(&children(parent)?);
+            n += 1;
+        }
+        let mut filled = WideNode::default();
+        for (lane, &b) in lanes[..n].iter().enumerate() {
+            let child = &binary[b as usize];
+            let target = if child.is_leaf() {
+                leaf_reference(child)?
+            } else {
+                if used == wide.len() {
+                    return Err(BvhError::Malformed);
+                }
+                wide[used] = WideNode::default();
+                wide[used].child[0] = b;
+                used += 1;
+                (used - 1) as u32
+            };
+            set_lane(&mut filled, lane, child, target);
+        }
+        for (octant, order) in filled.order.iter_mut().enumerate() {
+            *order = visiting_order(binary, source, &lanes[..n], octant)?;
+        }
+        wide[next] = filled;
+        next += 1;
+    }
+    Ok(used)
+}
+
+fn leaf_reference(leaf: &BvhNode) -> Result<u32, BvhError> {
+    if leaf.offset & WIDE_LEAF != 0 {
+        return Err(BvhError::TooManyPrims);
+    }
+    Ok(WIDE_LEAF | leaf.offset)
+}
+
+fn set_lane(node: &mut WideNode, lane: usize, child: &BvhNode, target: u32) {
+    for axis in 0..3 {
+        node.lo[axis][lane] = child.min[axis];
+        node.hi[axis][lane] = child.max[axis];
+    }
+    node.child[lane] = target;
+    node.count[lane] = child.count;
+}
+
+/// The order in which the binary traversal ([`super::Bvh::traverse`]) reaches `lanes` below
+/// `source` for rays of `octant`, packed two bits per lane; unused lanes follow in lane order.
+fn visiting_order(
+    binary: &[BvhNode],
+    source: u32,
+    lanes: &[u32],
+    octant: usize,
+) -> Result<u8, BvhError> {
+    let mut order = 0u8;
+    let mut placed = 0;
+    // The collapsed part is at most three binary nodes deep (four lanes).
+    let mut stack = [0u32; WIDTH];
+    let mut sp = 1;
+    stack[0] = source;
+    while sp > 0 {
+        sp -= 1;
+        let b = stack[sp];
+        if b != source {
+            if let Some(lane) = lanes.iter().position(|&l| l == b) {
+                order |= (lane as u8) << (2 * placed);
+                placed += 1;
+                continue;
+            }
+        }
+        let node = &binary[b as usize];
+        let negative = octant >> node.axis.min(2) & 1 == 1;
+        let (near, far) = if negative {
+            (node.offset, b + 1)
+        } else {
+            (b + 1, node.offset)
+        };
+        if sp + 2 > stack.len() {
+            return Err(BvhError::Malformed);
+        }
+        stack[sp] = far;
+        stack[sp + 1] = near;
+        sp += 2;
+    }
+    for lane in lanes.len()..WIDTH {
+        order |= (lane as u8) << (2 * placed);
+        placed += 1;
+    }
+    Ok(order)
+}
+
+/// A collapsed wide BVH borrowed from caller storage.
+#[derive(Clone, Copy, Debug)]
+pub struct WideBvh<'a> {
+    pub nodes: &'a [WideNode],
+    pub prim_order: &'a [u32],
+}
+
+impl WideBvh<'_> {
+    /// As [`super::Bvh::traverse`], with the same calls of `hit` in the same order: visits the
+    /// leaves that the ray `o + t·d`, `t < t_max`, may hit and calls `hit(prim, t_max)` for
+    /// each primitive; `hit` returns the distance of a hit closer than the `t_max` it was
+    /// given. With `ANY_HIT`, traversal stops at the first hit (shadow rays); otherwise
+    /// `t_max` shrinks to the closest hit so far. Returns whether anything was hit.
+    #[inline]
+    pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, f32) -> Option<f32>>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        mut t_max: f32,
+        mut hit: F,
+    ) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let slab = Slab::new(o, d);
+        // Children still to visit, the next one on top: (node index, or WIDE_LEAF | parent
+        // index · WIDTH + lane for a leaf; entry distance of the box).
+        let mut stack = [(0u32, 0f32); WIDE_TRAVERSAL_STACK];
+        let mut sp = 0usize;
+        let mut any = false;
+        let mut index = 0usize;
+        loop {
+            let node = &self.nodes[index];
+            let (t0, bits) = slab.hit(node, t_max);
+            let t0 = t0.to_array();
+            let order = node.order[slab.octant];
+            // Push the children the ray enters, last in visiting order first. Every lane is
+            // written and only entered ones are kept: no branch on the slab test's outcome.
+            for position in (0..WIDTH).rev() {
+                let lane = usize::from(order >> (2 * position) & 3);
+                let reference = if node.is_leaf(lane) {
+                    WIDE_LEAF | (index * WIDTH + lane) as u32
+                } else {
+                    node.child[lane]
+                };
+                stack[sp] = (reference, t0[lane]);
+                sp += (bits >> lane & 1) as usize;
+            }
+            // Take the next child whose box the ray still enters before the closest hit so
+            // far (the binary traversal tests the box at this point); run the leaves.
+            loop {
+                if sp == 0 {
+                    return any;
+                }
+                sp -= 1;
+                let (reference, entry) = stack[sp];
+                if entry >= t_max {
+                    continue;
+                }
+                if reference & WIDE_LEAF == 0 {
+                    index = reference as usize;
+                    break;
+                }
+                let leaf = (reference & !WIDE_LEAF) as usize;
+                let parent = &self.nodes[leaf / WIDTH];
+                let lane = leaf % WIDTH;
+                let first = (parent.child[lane] & !WIDE_LEAF) as usize;
+                let count = usize::from(parent.count[lane]);
+                for &prim in &self.prim_order[first..first + count] {
+                    if let Some(t) = hit(prim, t_max) {
+                        any = true;
+                        if ANY_HIT {
+                            return true;
+                        }
+                        // Never farther: a hit test may round a distance just past the
+                        // `t_max` it was given, and a growing `t_max` would make the visit
+                        // depend on when a box is tested.
+                        t_max = t_max.min(t);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Per-ray constants of the four-lane slab test.
+struct Slab {
+    o: [Vec4; 3],
+    inv_d: [Vec4; 3],
+    neg: [bool; 3],
+    octant: usize,
+}
+
+impl Slab {
+    #[inline]
+    fn new(o: Vec3, d: Vec3) -> Self {
+        let inv_d = Vec3::ONE / d;
+        let neg = [inv_d.x < 0.0, inv_d.y < 0.0, inv_d.z < 0.0];
+        Self {
+            o: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
+            inv_d: [
+                Vec4::splat(inv_d.x),
+                Vec4::splat(inv_d.y),
+                Vec4::splat(inv_d.z),
+            ],
+            neg,
+            octant: usize::from(neg[0]) | usize::from(neg[1]) << 1 | usize::from(neg[2]) << 2,
+        }
+    }
+
+    /// Entry distances and the bit mask of lanes whose box the ray enters within
+    /// `[0, t_max)`, each decided as [`crate::geometry::Aabb::hit`] decides for one box
+    /// (pbrt's conservative rounding of the exit distance; a NaN slab, 0·∞ for an origin on a
+    /// slab plane with a zero direction component, does not constrain the ray).
+    #[inline]
+    fn hit(&self, node: &WideNode, t_max: f32) -> (Vec4, u32) {
+        let scale = Vec4::splat(1.0 + 2.0 * gamma(3));
+        let mut t0 = Vec4::NEG_INFINITY;
+        let mut t1 = Vec4::INFINITY;
+        for axis in 0..3 {
+            let (near, far) = if self.neg[axis] {
+                (node.hi[axis], node.lo[axis])
+            } else {
+                (node.lo[axis], node.hi[axis])
+            };
+            let tn = (Vec4::from_array(near) - self.o[axis]) * self.inv_d[axis];
+            let tf = (Vec4::from_array(far) - self.o[axis]) * self.inv_d[axis] * scale;
+            t0 = t0.max(Vec4::select(tn.is_nan_mask(), Vec4::NEG_INFINITY, tn));
+            t1 = t1.min(Vec4::select(tf.is_nan_mask(), Vec4::INFINITY, tf));
+        }
+        let inside = t0.cmple(t1) & t0.cmplt(Vec4::splat(t_max)) & t1.cmpgt(Vec4::ZERO);
+        (t0, inside.bitmask())
+    }
+}
