@@ -4,6 +4,8 @@
 //! and the second child is at [`BvhNode::offset`]; a leaf's primitives are
 //! `prim_order[offset .. offset + count]`. Traversal keeps a fixed [`MAX_DEPTH`]-entry stack and visits the
 //! nearer child first. The build (binned SAH, [`build`]) writes straight into caller slices.
+//! [`collapse`] turns the binary tree into a four-wide one ([`WideNode`]) that makes the same
+//! triangle tests in the same order with fewer, vectorised box tests.
 
 mod build;
 mod traverse;
