@@ -16,8 +16,8 @@ pub use build::{
 };
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 pub use wide::{
-    collapse, max_wide_nodes, WideBvh, WideNode, WIDE_LEAF, WIDE_MAX_DEPTH, WIDE_TRAVERSAL_STACK,
-    WIDTH,
+    collapse, max_wide_nodes, WideBvh, WideNode, SMALL_TREE_NODES, WIDE_LEAF, WIDE_MAX_DEPTH,
+    WIDE_TRAVERSAL_STACK, WIDTH,
 };
 
 use crate::geometry::Aabb;
