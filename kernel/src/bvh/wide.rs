@@ -45,7 +45,7 @@ pub const WIDE_LEAF: u32 = 1 << 31;
 
 /// One 128-byte wide node (`#[repr(C)]`; structure of arrays, so that each axis loads as one
 /// vector). Unused lanes hold empty boxes and empty leaves.
-#[repr(C, align(16))]
+#[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WideNode {
     /// `lo[axis][lane]`: lower corners of the child boxes.
