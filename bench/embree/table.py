@@ -77,7 +77,7 @@ def main():
     if args.note:
         L.append(args.note + "\n")
     passes = len(next(iter(traces.values()))["times_s"]) if traces else 0
-    L.append(f"Mrays/s from the **median** pass. ember: `SceneView::intersect` / `SceneView::occluded` (binary "
+    L.append(f"Mrays/s from the **median** pass. ember: `SceneView::intersect` / `SceneView::occluded` (four-wide "
              f"BVH, watertight triangle test), 1 warm-up + {passes} timed passes, each writing t and triangle (or the "
              "occlusion flag) per ray; 1 thread pinned to one CPU with `taskset`, 2 threads pulling 4096-ray chunks. "
              f"Embree: `bench.py --skip-native` (embreex's Cython loop of `rtcIntersect1`/`rtcOccluded1`, "
