@@ -1006,6 +1006,40 @@ fn wide_collapse_edge_cases() {
     let interior = backwards.iter().position(|n| !n.is_leaf()).unwrap();
     backwards[interior].offset = 0;
     assert_eq!(collapse(&backwards, &mut out), Err(BvhError::Malformed));
+    // A hand-made chain far deeper than the build makes: each interior node has a leaf as its
+    // first child. The collapse refuses it rather than make a tree the traversal stack cannot
+    // hold; a chain within the limit collapses.
+    let chain = |interior: u32| -> Vec<BvhNode> {
+        let mut nodes = Vec::new();
+        for k in 0..interior {
+            let i = nodes.len() as u32;
+            nodes.push(BvhNode {
+                offset: i + 2,
+                ..BvhNode::default()
+            });
+            nodes.push(BvhNode {
+                offset: k,
+                count: 1,
+                ..BvhNode::default()
+            });
+        }
+        nodes.push(BvhNode {
+            offset: interior,
+            count: 1,
+            ..BvhNode::default()
+        });
+        nodes
+    };
+    let deep = chain(400);
+    let mut out = vec![WideNode::default(); max_wide_nodes(deep.len())];
+    assert_eq!(collapse(&deep, &mut out), Err(BvhError::TooDeep));
+    let shallow = chain(100);
+    let mut out = vec![WideNode::default(); max_wide_nodes(shallow.len())];
+    let used = collapse(&shallow, &mut out).unwrap();
+    assert!(
+        used <= WIDE_MAX_DEPTH,
+        "{used} wide nodes for a chain of 100"
+    );
     let mut truncated = b.nodes.clone();
     truncated.truncate(3);
     assert_eq!(

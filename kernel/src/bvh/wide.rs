@@ -3,7 +3,7 @@
 //!
 //! Why: on small scenes such as the Cornell box a binary traversal spends most of its time on
 //! one data-dependent branch per box. A wide node answers four boxes with straight-line vector
-//! code and the tree has a third as many nodes.
+//! code, and the tree has about a quarter as many nodes.
 //!
 //! Same hits as the binary tree, by construction: each node stores, for each of the eight ray
 //! direction octants, the order in which the binary traversal would reach its children, and a
@@ -104,6 +104,8 @@ pub const fn max_wide_nodes(binary_nodes: usize) -> usize {
 /// # Errors
 /// [`BvhError::NodeCapacity`] if `wide` is shorter than [`max_wide_nodes`];
 /// [`BvhError::TooManyPrims`] if a leaf starts at or beyond [`WIDE_LEAF`];
+/// [`BvhError::TooDeep`] if the wide tree would be deeper than [`WIDE_MAX_DEPTH`] (never for a
+/// tree from [`super::build`]);
 /// [`BvhError::Malformed`] if `binary` is not a tree as the build writes it.
 pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhError> {
     let needed = max_wide_nodes(binary.len());
@@ -135,12 +137,13 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
         Ok(kids)
     };
     // The output doubles as the work queue: a wide node waiting to be filled holds the index
-    // of its binary source in `child[0]`.
+    // of its binary source in `child[0]` and its depth in `child[1]`.
     wide[0].child[0] = 0;
+    wide[0].child[1] = 1;
     let mut used = 1usize;
     let mut next = 0usize;
     while next < used {
-        let source = wide[next].child[0];
+        let [source, depth, ..] = wide[next].child;
         // Open binary nodes breadth-first until there are four children or only leaves.
         let mut lanes = [0u32; WIDTH];
         lanes[..2].copy_from_slice(&children(source)?);
@@ -163,8 +166,13 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
                 if used == wide.len() {
                     return Err(BvhError::Malformed);
                 }
+                // The traversal stack holds `WIDTH − 1` entries per level of this depth.
+                if depth as usize >= WIDE_MAX_DEPTH {
+                    return Err(BvhError::TooDeep);
+                }
                 wide[used] = WideNode::default();
                 wide[used].child[0] = b;
+                wide[used].child[1] = depth + 1;
                 used += 1;
                 (used - 1) as u32
             };
