@@ -128,7 +128,12 @@ pub fn bake(scene: &LoadedScene, s: &BakeSettings) -> Result<(BakedMesh, BakeRep
                         p + (c - p) * s.vertex_inset
                     }
                 };
-                points.push(BakePoint { p, n, material: m });
+                points.push(BakePoint {
+                    p,
+                    n,
+                    material: m,
+                    uv: glam::Vec2::ZERO,
+                });
                 (points.len() - 1) as u32
             })
         })

@@ -7,9 +7,10 @@
 //! uses is checked and its errors name the line, the material and the key.
 
 use crate::error::{Error, Result};
-use ember_kernel::bsdf::{Bsdf, Diffuse, Phong};
 use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
+use ember_kernel::emitter::{build_emitter_table, EmitterPolicy, EmitterTableError};
 use ember_kernel::geometry::Aabb;
+use ember_kernel::material::Surface;
 use ember_kernel::scene::{Material, SceneView};
 use ember_kernel::Rgb;
 use glam::Vec3;
@@ -57,14 +58,14 @@ pub struct SceneData {
     pub mtl_files: Vec<std::path::PathBuf>,
 }
 
-/// The BSDF for an MTL `illum` value: 7 diffuse, 8 diffuse+Phong mixture, anything else Phong
+/// The surface for an MTL `illum` value: 7 diffuse, 8 diffuse+Phong mixture, anything else Phong
 /// (FORMAT.md §4; `illum 5` has no BSDF in TinyRender and is treated as Phong here).
 #[must_use]
-pub fn bsdf_for(illum: u8, kd: Rgb, ks: Rgb, ns: f32) -> Bsdf {
+pub fn bsdf_for(illum: u8, kd: Rgb, ks: Rgb, ns: f32) -> Surface {
     match illum {
-        7 => Bsdf::Diffuse(Diffuse::new(kd)),
-        8 => Bsdf::Mixture(Phong::new(kd, ks, ns)),
-        _ => Bsdf::Phong(Phong::new(kd, ks, ns)),
+        7 => Material::diffuse(kd).surface,
+        8 => Material::mixture(kd, ks, ns).surface,
+        _ => Material::phong(kd, ks, ns).surface,
     }
 }
 
@@ -592,7 +593,7 @@ impl SceneData {
                     ));
                 }
                 scene.materials.push(Material {
-                    bsdf: bsdf_for(m.illum, m.kd, m.ks, m.ns),
+                    surface: bsdf_for(m.illum, m.kd, m.ks, m.ns),
                     emission: m.ke,
                 });
                 scene.material_info.push(MaterialInfo {
@@ -639,7 +640,7 @@ impl SceneData {
                 }
                 None => *default_material.get_or_insert_with(|| {
                     scene.materials.push(Material {
-                        bsdf: bsdf_for(0, Rgb::ZERO, Rgb::ZERO, 1.0),
+                        surface: bsdf_for(0, Rgb::ZERO, Rgb::ZERO, 1.0),
                         emission: Rgb::ZERO,
                     });
                     scene.material_info.push(MaterialInfo {
@@ -715,42 +716,36 @@ impl SceneData {
         0.5 * (p1 - p0).cross(p2 - p0).length()
     }
 
-    /// TinyRender's emitter rule: an object is an area light when its (first face's) material
-    /// has non-zero `Ke`. An emitter is chosen uniformly, then a triangle of it by area.
+    /// TinyRender's emitter rule: an object is an area light when its material has non-zero
+    /// `Ke`; an emitter is chosen uniformly, then a triangle of it by area (the kernel's
+    /// [`EmitterPolicy::UniformPerObject`]).
     ///
     /// # Errors
     /// When an emitter's area is not finite (coordinates near the `f32` limit).
     fn build_emitters(&mut self) -> std::result::Result<(), String> {
-        self.emitter_triangles.clear();
-        self.emitter_cdf.clear();
-        let emitters: Vec<&Object> = self
-            .objects
-            .iter()
-            .filter(|o| self.materials[o.material as usize].is_emissive())
-            .filter(|o| o.triangles.clone().any(|t| self.triangle_area(t) > 0.0))
-            .collect();
-        self.emitter_count = emitters.len();
-        let mut acc = 0.0f64;
-        let mut tris = Vec::new();
-        let mut cdf = Vec::new();
-        for o in &emitters {
-            let area: f64 = o
-                .triangles
-                .clone()
-                .map(|t| f64::from(self.triangle_area(t)))
-                .sum();
-            if !area.is_finite() {
-                return Err(format!(
-                    "emitter '{}' has a non-finite area (coordinates too large for f32)",
-                    quote(&o.name)
-                ));
-            }
+        let mut objects = vec![0u32; self.triangles.len()];
+        for (i, o) in self.objects.iter().enumerate() {
             for t in o.triangles.clone() {
-                acc += f64::from(self.triangle_area(t)) / area / emitters.len() as f64;
-                tris.push(t);
-                cdf.push(acc as f32);
+                objects[t as usize] = i as u32;
             }
         }
+        let emission = |m: u32| self.materials[m as usize].emission;
+        let policy = EmitterPolicy::UniformPerObject { objects: &objects };
+        let (p, t, m) = (&self.positions, &self.triangles, &self.triangle_materials);
+        let needed = match build_emitter_table(p, t, m, emission, policy, &mut [], &mut []) {
+            Ok(n) => n,
+            Err(EmitterTableError::Capacity { needed, .. }) => needed,
+            Err(e) => return Err(e.to_string()),
+        };
+        let mut tris = vec![0u32; needed];
+        let mut cdf = vec![0f32; needed];
+        build_emitter_table(p, t, m, emission, policy, &mut tris, &mut cdf)
+            .map_err(|e| e.to_string())?;
+        self.emitter_count = self
+            .objects
+            .iter()
+            .filter(|o| o.triangles.clone().any(|t| tris.binary_search(&t).is_ok()))
+            .count();
         self.emitter_triangles = tris;
         self.emitter_cdf = cdf;
         Ok(())
@@ -802,6 +797,7 @@ impl SceneData {
                 prim_order: &self.bvh_prim_order,
             }
             .into(),
+            textures: ember_kernel::texture::Textures::NONE,
         }
     }
 
@@ -857,7 +853,7 @@ mod tests {
         assert_eq!(s.materials[0].emission, Rgb::new(1.0, 2.0, 3.0));
         assert_eq!(s.material_info[0].illum, 8);
         assert_eq!(
-            s.materials[0].bsdf,
+            s.materials[0].surface,
             bsdf_for(8, Rgb::ZERO, Rgb::ZERO, 4.0),
             "Kd and Ks default to 0, the ignored Ka is not checked"
         );

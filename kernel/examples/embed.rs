@@ -7,10 +7,9 @@
 //!
 //! It prints a small render of a lit room as ASCII art, its mean radiance, and a baked value.
 
-use ember_kernel::bsdf::{Bsdf, Diffuse, Phong};
 use ember_kernel::bvh::{self, Bvh, BvhNode};
 use ember_kernel::camera::Camera;
-use ember_kernel::emitter::build_emitter_table;
+use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
 use ember_kernel::integrator::{
     bake_vertex, render_pixel, BakeEstimator, BakePoint, Integrator, PathSettings, PixelStats,
 };
@@ -55,22 +54,10 @@ impl Mesh {
 
 fn main() {
     // Materials: the engine's own description, converted once into the kernel's.
-    let white = Material {
-        bsdf: Bsdf::Diffuse(Diffuse::new(Rgb::new(0.73, 0.71, 0.68))),
-        emission: Rgb::ZERO,
-    };
-    let blue = Material {
-        bsdf: Bsdf::Diffuse(Diffuse::new(Rgb::new(0.1, 0.2, 0.6))),
-        emission: Rgb::ZERO,
-    };
-    let glossy = Material {
-        bsdf: Bsdf::Mixture(Phong::new(Rgb::splat(0.3), Rgb::splat(0.5), 60.0)),
-        emission: Rgb::ZERO,
-    };
-    let light = Material {
-        bsdf: Bsdf::Diffuse(Diffuse::new(Rgb::ZERO)),
-        emission: Rgb::new(12.0, 11.0, 9.0),
-    };
+    let white = Material::diffuse(Rgb::new(0.73, 0.71, 0.68));
+    let blue = Material::diffuse(Rgb::new(0.1, 0.2, 0.6));
+    let glossy = Material::mixture(Rgb::splat(0.3), Rgb::splat(0.5), 60.0);
+    let light = Material::diffuse(Rgb::ZERO).with_emission(Rgb::new(12.0, 11.0, 9.0));
     let materials = vec![white, blue, glossy, light];
 
     // A room open toward +z with a ceiling light and a glossy block.
@@ -93,12 +80,13 @@ fn main() {
     nodes.truncate(used);
 
     // The emitter table: ask for its size with empty slices, then fill it.
-    let emissive = |m: u32| materials[m as usize].is_emissive();
+    let emission = |m: u32| materials[m as usize].emission;
     let count = match build_emitter_table(
         &mesh.positions,
         &mesh.triangles,
         &mesh.triangle_materials,
-        emissive,
+        emission,
+        EmitterPolicy::Area,
         &mut [],
         &mut [],
     ) {
@@ -112,7 +100,8 @@ fn main() {
         &mesh.positions,
         &mesh.triangles,
         &mesh.triangle_materials,
-        emissive,
+        emission,
+        EmitterPolicy::Area,
         &mut emitter_triangles,
         &mut emitter_cdf,
     )
@@ -131,6 +120,7 @@ fn main() {
             prim_order: &order,
         }
         .into(),
+        textures: ember_kernel::texture::Textures::NONE,
     };
     scene.validate().expect("consistent scene");
 
@@ -192,6 +182,7 @@ fn main() {
         p: Vec3::new(0.0, 0.0, 0.6),
         n: Vec3::Y,
         material: 0,
+        uv: ember_kernel::Vec2::ZERO,
     };
     let baked = bake_vertex(
         &scene,

@@ -30,7 +30,6 @@
 // Every `unsafe` block states why it is sound; clippy enforces the comment.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
-use crate::bsdf::{Bsdf, Diffuse, Phong};
 use crate::bvh::{self, Bvh, BvhNode, TRAVERSAL_STACK};
 use crate::camera::Camera;
 use crate::emitter::{build_emitter_table, EmitterTableError};
@@ -206,10 +205,7 @@ const _: () = {
 };
 
 /// Materials substituted for unused entries of the stack table.
-const BLACK: Material = Material {
-    bsdf: Bsdf::Diffuse(Diffuse { kd: Vec3::ZERO }),
-    emission: Vec3::ZERO,
-};
+const BLACK: Material = Material::BLACK;
 
 /// The node of a scene without triangles: an empty box no ray enters.
 const EMPTY_BVH: [BvhNode; 1] = [BvhNode {
@@ -331,16 +327,13 @@ fn convert_material(m: &EmberMaterial) -> Option<Material> {
         return None;
     }
     let (kd, ks) = (Rgb::from_array(m.kd), Rgb::from_array(m.ks));
-    let bsdf = match m.kind {
-        EMBER_MATERIAL_DIFFUSE => Bsdf::Diffuse(Diffuse::new(kd)),
-        EMBER_MATERIAL_PHONG => Bsdf::Phong(Phong::new(kd, ks, m.ns)),
-        EMBER_MATERIAL_MIXTURE => Bsdf::Mixture(Phong::new(kd, ks, m.ns)),
+    let material = match m.kind {
+        EMBER_MATERIAL_DIFFUSE => Material::diffuse(kd),
+        EMBER_MATERIAL_PHONG => Material::phong(kd, ks, m.ns),
+        EMBER_MATERIAL_MIXTURE => Material::mixture(kd, ks, m.ns),
         _ => return None,
     };
-    Some(Material {
-        bsdf,
-        emission: Rgb::from_array(m.ke),
-    })
+    Some(material.with_emission(Rgb::from_array(m.ke)))
 }
 
 /// Checks that `nodes` is a depth-first BVH over `prims` primitives that traversal can walk:
@@ -426,6 +419,7 @@ unsafe fn scene_view<'a>(
         emitter_triangles,
         emitter_cdf,
         bvh: Bvh { nodes, prim_order }.into(),
+        textures: crate::texture::Textures::NONE,
     };
     view.validate().map_err(|_| EMBER_ERROR_INVALID_SCENE)?;
     Ok(view)
@@ -591,12 +585,13 @@ unsafe fn ember_build_emitters_impl(
     {
         return Err(EMBER_ERROR_INVALID_SCENE);
     }
-    let emissive = |m: u32| g.materials[m as usize].ke != [0.0; 3];
+    let emission = |m: u32| Rgb::from_array(g.materials[m as usize].ke);
     let r = build_emitter_table(
         g.positions,
         g.triangles,
         g.triangle_materials,
-        emissive,
+        emission,
+        crate::emitter::EmitterPolicy::Area,
         tris,
         cdf,
     );
@@ -794,6 +789,7 @@ unsafe fn ember_bake_vertices_impl(
             p: Vec3::from_array(p.p),
             n: Vec3::from_array(p.n),
             material: p.material,
+            uv: glam::Vec2::ZERO,
         };
         let l = bake_vertex(
             &view,

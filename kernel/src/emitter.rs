@@ -99,6 +99,10 @@ pub enum EmitterTableError {
     MaterialCount { triangles: usize, materials: usize },
     /// The output slices hold fewer than `needed` entries (or differ in length).
     Capacity { needed: usize, given: usize },
+    /// `UniformPerObject` was given an object id count that differs from the triangle count.
+    ObjectCount { triangles: usize, objects: usize },
+    /// The weights do not sum to a finite number (an emitter's area overflows `f32`).
+    NonFinite,
 }
 
 impl core::fmt::Display for EmitterTableError {
@@ -117,6 +121,13 @@ impl core::fmt::Display for EmitterTableError {
                     "emitter table needs {needed} entries but {given} were provided"
                 )
             }
+            Self::ObjectCount { triangles, objects } => {
+                write!(f, "{triangles} triangles but {objects} object ids")
+            }
+            Self::NonFinite => write!(
+                f,
+                "the emitters' total weight is not finite (coordinates too large for f32)"
+            ),
         }
     }
 }
@@ -128,25 +139,38 @@ fn triangle_area(positions: &[Vec3], t: [u32; 3]) -> f32 {
     0.5 * (p1 - p0).cross(p2 - p0).length()
 }
 
+/// How [`build_emitter_table`] weights the emissive triangles it lists.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmitterPolicy<'a> {
+    /// Each triangle in proportion to its area: the same density over all emitting surface.
+    Area,
+    /// Each triangle in proportion to the power it emits, area × the average of its `Ke`
+    /// components (pbrt-v4's power light sampler; brighter emitters get more samples).
+    Power,
+    /// TinyRender's rule: an emitter uniformly, then a triangle of it in proportion to area.
+    /// `objects[t]` names the emitter (object) triangle `t` belongs to; an object is a run of
+    /// consecutive triangles with one id (as an OBJ's objects are). An object emits when its triangles' material does (FORMAT.md §5)
+    /// and its emitting area is positive.
+    UniformPerObject { objects: &'a [u32] },
+}
+
 /// Fills the emitter table of [`SceneView`] (`emitter_triangles`, `emitter_cdf`) with every
-/// triangle whose material `emissive(material id)` says emits and whose area is positive, in
-/// ascending triangle order, each chosen **in proportion to its area** over all of them.
-/// Returns the number of entries written (0 when nothing emits).
-///
-/// This is TinyRender's rule ("an emitter uniformly, then a triangle of it by area") when the
-/// scene has one emitting object, and gives bit-identical tables then (the sums are in f64, as
-/// the command-line host computes them). A host that groups triangles into several emitting
-/// objects and wants them chosen uniformly builds its own table, as `host-cli` does.
+/// triangle whose material emits (`emission(material id)` non-zero) and whose area is
+/// positive, in ascending triangle order, weighted by `policy`. Returns the number of entries
+/// written (0 when nothing emits). The weights are summed in f64 in triangle order, so the
+/// table is a pure function of its inputs on every target.
 ///
 /// # Errors
-/// Missing vertices, a material id count that differs from the triangle count, or output
-/// slices shorter than the number of emitting triangles (the error says how many are needed;
-/// pass empty slices to ask).
+/// Missing vertices, a material id count (or object id count) that differs from the triangle
+/// count, a non-finite total weight (coordinates near the `f32` limit), or output slices
+/// shorter than the number of emitting triangles (the error says how many are needed; pass
+/// empty slices to ask).
 pub fn build_emitter_table(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     triangle_materials: &[u32],
-    emissive: impl Fn(u32) -> bool,
+    emission: impl Fn(u32) -> Rgb,
+    policy: EmitterPolicy<'_>,
     out_triangles: &mut [u32],
     out_cdf: &mut [f32],
 ) -> Result<usize, EmitterTableError> {
@@ -156,31 +180,99 @@ pub fn build_emitter_table(
             materials: triangle_materials.len(),
         });
     }
+    if let EmitterPolicy::UniformPerObject { objects } = policy {
+        if objects.len() != triangles.len() {
+            return Err(EmitterTableError::ObjectCount {
+                triangles: triangles.len(),
+                objects: objects.len(),
+            });
+        }
+    }
     for (t, tri) in triangles.iter().enumerate() {
         if let Some(&index) = tri.iter().find(|&&v| v as usize >= positions.len()) {
             return Err(EmitterTableError::VertexIndex { triangle: t, index });
         }
     }
-    // The area of each emitting triangle, or `None` for the others.
+    // The area and emission of each emitting triangle, or `None` for the others.
     let emitting = |t: usize| {
         let area = triangle_area(positions, triangles[t]);
-        (emissive(triangle_materials[t]) && area > 0.0).then_some(area)
+        let le = emission(triangle_materials[t]);
+        (le != Rgb::ZERO && area > 0.0).then_some((area, le))
     };
-    let (needed, total) = (0..triangles.len())
-        .filter_map(emitting)
-        .fold((0usize, 0.0f64), |(n, sum), a| (n + 1, sum + f64::from(a)));
+    let needed = (0..triangles.len()).filter_map(emitting).count();
     let given = out_triangles.len().min(out_cdf.len());
     if given < needed {
         return Err(EmitterTableError::Capacity { needed, given });
     }
+    let mut written = 0usize;
+    let mut push = |t: usize, c: f64| {
+        out_triangles[written] = t as u32;
+        out_cdf[written] = c as f32;
+        written += 1;
+    };
     let mut acc = 0.0f64;
-    let entries = (0..triangles.len()).filter_map(|t| emitting(t).map(|a| (t, a)));
-    for ((t, area), (out_t, out_c)) in entries.zip(out_triangles.iter_mut().zip(out_cdf.iter_mut()))
-    {
-        acc += f64::from(area) / total;
-        *out_t = t as u32;
-        *out_c = acc as f32;
+    match policy {
+        EmitterPolicy::Area | EmitterPolicy::Power => {
+            let weight = |area: f32, le: Rgb| match policy {
+                EmitterPolicy::Power => f64::from(area) * (f64::from(le.x + le.y + le.z) / 3.0),
+                _ => f64::from(area),
+            };
+            let total: f64 = (0..triangles.len())
+                .filter_map(emitting)
+                .map(|(a, le)| weight(a, le))
+                .sum();
+            if !total.is_finite() {
+                return Err(EmitterTableError::NonFinite);
+            }
+            for t in 0..triangles.len() {
+                if let Some((a, le)) = emitting(t) {
+                    acc += weight(a, le) / total;
+                    push(t, acc);
+                }
+            }
+        }
+        EmitterPolicy::UniformPerObject { objects } => {
+            // Objects are runs of consecutive triangles (as an OBJ's objects are), so each
+            // one's area is a sum over its run: linear time, no scratch memory.
+            let runs = || {
+                let mut start = 0usize;
+                core::iter::from_fn(move || {
+                    if start >= objects.len() {
+                        return None;
+                    }
+                    let id = objects[start];
+                    let len = objects[start..].iter().take_while(|&&o| o == id).count();
+                    let run = start..start + len;
+                    start += len;
+                    Some(run)
+                })
+            };
+            let area_of = |run: core::ops::Range<usize>| -> f64 {
+                run.filter_map(emitting).map(|(a, _)| f64::from(a)).sum()
+            };
+            let mut count = 0usize;
+            for run in runs() {
+                let area = area_of(run.clone());
+                if !area.is_finite() {
+                    return Err(EmitterTableError::NonFinite);
+                }
+                if area > 0.0 {
+                    count += 1;
+                }
+            }
+            let n = count as f64;
+            for run in runs() {
+                let area = area_of(run.clone());
+                for t in run {
+                    if let Some((a, _)) = emitting(t) {
+                        acc += f64::from(a) / area / n;
+                        push(t, acc);
+                    }
+                }
+            }
+        }
     }
+    debug_assert_eq!(written, needed);
     Ok(needed)
 }
 

@@ -7,10 +7,12 @@
 //! - [`geometry`]: rays, watertight triangle intersection, robust ray origins.
 //! - [`bvh`]: binned-SAH BVH built into caller slices, fixed-stack traversal.
 //! - [`camera`]: the TinyRender pinhole camera.
-//! - [`bsdf`]: the closed set of BSDFs (enum dispatch, local shading frame).
-//! - [`emitter`]: area emitters sampled by area.
+//! - [`bsdf`]: the closed set of BSDFs (enum dispatch, local shading frame) and the
+//!   [`bsdf::SurfaceBsdf`] wrapper integrators use them through.
+//! - [`material`]: materials, turned into BSDFs at surface points; [`texture`]: image textures.
+//! - [`emitter`]: area emitters and the table they are sampled from.
 //! - [`scene`]: [`scene::SceneView`], the borrowed scene every integrator works on.
-//! - [`integrator`]: path tracers (implicit and explicit).
+//! - [`integrator`]: the path tracers (one loop, three strategies) and the GI bake.
 //! - `capi` (feature `capi`): the C API over caller-owned arrays (`kernel/include/ember.h`).
 #![no_std]
 // No `unsafe` anywhere, except in the C API when it is compiled in: there raw pointers from C
@@ -30,9 +32,11 @@ pub mod capi;
 pub mod emitter;
 pub mod geometry;
 pub mod integrator;
+pub mod material;
 pub mod math;
 pub mod sampler;
 pub mod scene;
+pub mod texture;
 
 pub use glam;
 pub use glam::{Vec2, Vec3};

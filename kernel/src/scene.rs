@@ -1,35 +1,23 @@
 //! The scene as borrowed slices: what every integrator reads.
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::SurfaceBsdf;
 use crate::bvh::SceneBvh;
 use crate::geometry::{inset_barycentrics, triangle_point, Ray, WatertightRay};
 use crate::math::Frame;
+use crate::texture::{Textures, NO_TEXTURE};
 use crate::Rgb;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
-/// A surface material: its BSDF and its emitted radiance (`Ke`, one-sided, toward the side the
-/// shading normal points to; FORMAT.md §5).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Material {
-    pub bsdf: Bsdf,
-    pub emission: Rgb,
-}
-
-impl Material {
-    #[inline]
-    #[must_use]
-    pub fn is_emissive(&self) -> bool {
-        self.emission != Rgb::ZERO
-    }
-}
+pub use crate::material::Material;
 
 /// All scene data, borrowed from the host. Vertex attributes share one index per corner.
 ///
 /// Emitter sampling reads `emitter_triangles` (indices of emissive triangles, sorted ascending
 /// so that the pdf of a hit emitter is found by binary search) and
 /// `emitter_cdf` (non-decreasing cumulative selection probabilities, one per entry, the last
-/// one the total). The host chooses the weights; TinyRender's rule is "an emitter uniformly,
-/// then a triangle of it in proportion to area".
+/// one the total), filled by [`crate::emitter::build_emitter_table`] with the host's choice of
+/// policy (TinyRender's rule is "an emitter uniformly, then a triangle of it in proportion to
+/// area"). Textured materials read `textures`.
 #[derive(Clone, Copy, Debug)]
 pub struct SceneView<'a> {
     pub positions: &'a [Vec3],
@@ -40,6 +28,7 @@ pub struct SceneView<'a> {
     pub emitter_triangles: &'a [u32],
     pub emitter_cdf: &'a [f32],
     pub bvh: SceneBvh<'a>,
+    pub textures: Textures<'a>,
 }
 
 /// Why a [`SceneView`] is not consistent; checked once by [`SceneView::validate`] so the hot
@@ -55,6 +44,9 @@ pub enum SceneError {
     EmitterOrder { entry: usize },
     EmitterCdf { entry: usize },
     BvhPrimitive { entry: usize, index: u32 },
+    TextureIndex { material: usize, index: u32 },
+    TextureTexels { texture: usize },
+    UvCount { positions: usize, uvs: usize },
 }
 
 impl core::fmt::Display for SceneError {
@@ -97,6 +89,17 @@ impl core::fmt::Display for SceneError {
             Self::BvhPrimitive { entry, index } => {
                 write!(f, "BVH entry {entry} refers to missing triangle {index}")
             }
+            Self::TextureIndex { material, index } => {
+                write!(f, "material {material} refers to missing texture {index}")
+            }
+            Self::TextureTexels { texture } => write!(
+                f,
+                "texture {texture} is empty or its texels lie outside the texel array"
+            ),
+            Self::UvCount { positions, uvs } => write!(
+                f,
+                "{positions} positions but {uvs} texture coordinates (a material is textured)"
+            ),
         }
     }
 }
@@ -125,10 +128,14 @@ pub struct SurfaceInteraction {
     pub ng: Vec3,
     /// Shading frame around the interpolated vertex normal.
     pub frame: Frame,
-    /// Direction toward the viewer in the shading frame.
+    /// Unit world-space direction toward the viewer (the previous path vertex).
     pub wo: Vec3,
     pub material: u32,
+    /// The triangle and the barycentrics of vertices 1 and 2 of the point (for texture
+    /// coordinates; `u32::MAX` for points that are not on a scene triangle).
     pub triangle: u32,
+    pub b1: f32,
+    pub b2: f32,
 }
 
 impl SurfaceInteraction {
@@ -197,6 +204,40 @@ impl<'a> SceneView<'a> {
             if t as usize >= self.triangles.len() {
                 return Err(SceneError::BvhPrimitive { entry: i, index: t });
             }
+        }
+        self.validate_textures()
+    }
+
+    /// Texture ids of materials, texel ranges of textures, and texture coordinates for every
+    /// vertex when a material is textured.
+    fn validate_textures(&self) -> Result<(), SceneError> {
+        let t = &self.textures;
+        for (i, tex) in t.textures.iter().enumerate() {
+            let end = (tex.first_texel as usize).checked_add(tex.len());
+            if tex.is_empty() || end.is_none_or(|e| e > t.texels.len()) {
+                return Err(SceneError::TextureTexels { texture: i });
+            }
+        }
+        let mut textured = false;
+        for (i, m) in self.materials.iter().enumerate() {
+            for id in m.texture_ids() {
+                if id == NO_TEXTURE {
+                    continue;
+                }
+                if id as usize >= t.textures.len() {
+                    return Err(SceneError::TextureIndex {
+                        material: i,
+                        index: id,
+                    });
+                }
+                textured = true;
+            }
+        }
+        if textured && t.uvs.len() != self.positions.len() {
+            return Err(SceneError::UvCount {
+                positions: self.positions.len(),
+                uvs: t.uvs.len(),
+            });
         }
         Ok(())
     }
@@ -299,10 +340,31 @@ impl<'a> SceneView<'a> {
             p_err,
             ng,
             frame,
-            wo: frame.to_local(wo_world),
+            wo: wo_world,
             material: self.triangle_materials[triangle as usize],
             triangle,
+            b1,
+            b2,
         }
+    }
+
+    /// Interpolated texture coordinates at barycentrics `(b1, b2)` of `triangle`.
+    #[inline]
+    #[must_use]
+    pub fn uv_at(&self, triangle: u32, b1: f32, b2: f32) -> Vec2 {
+        let [i0, i1, i2] = self.triangles[triangle as usize];
+        let uv = |i: u32| self.textures.uvs[i as usize];
+        uv(i0) * (1.0 - b1 - b2) + uv(i1) * b1 + uv(i2) * b2
+    }
+
+    /// The BSDF at a surface point, with its material's textures read there.
+    #[inline]
+    #[must_use]
+    pub fn bsdf_at(&self, si: &SurfaceInteraction) -> SurfaceBsdf {
+        let bsdf = self
+            .material(si.material)
+            .bsdf(&self.textures, || self.uv_at(si.triangle, si.b1, si.b2));
+        SurfaceBsdf::new(bsdf, si.frame, si.ng)
     }
 
     /// The interaction for a hit of `ray`.
@@ -317,7 +379,7 @@ impl<'a> SceneView<'a> {
     #[must_use]
     pub fn emitted(&self, si: &SurfaceInteraction) -> Rgb {
         let m = self.material(si.material);
-        if si.wo.z > 0.0 {
+        if si.wo.dot(si.frame.n) > 0.0 {
             m.emission
         } else {
             Rgb::ZERO

@@ -68,11 +68,17 @@ fn phong_exponent(b: &Bsdf) -> Option<f32> {
     match b {
         Bsdf::Diffuse(_) => None,
         Bsdf::Phong(p) | Bsdf::Mixture(p) => Some(p.exponent),
+        Bsdf::Conductor(_) | Bsdf::Dielectric(_) => None,
     }
 }
 
 fn uniform(seed: u64, i: u64) -> Vec2 {
     IndependentSampler::new(seed, i, 0).next_2d()
+}
+
+/// The lobe-choice number `uc` that goes with `uniform(seed, i)` (independent of it).
+fn lobe(seed: u64, i: u64) -> f32 {
+    IndependentSampler::new(seed, i, 1).next_1d()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -87,8 +93,9 @@ fn sample_agrees_with_pdf_and_eval() {
             let wo = outgoing(ct, PHI_O);
             let mut some = 0;
             for i in 0..N {
-                let u = uniform(100 * ci as u64 + k as u64, i);
-                let Some(s) = bsdf.sample(wo, u, MODE) else {
+                let seed = 100 * ci as u64 + k as u64;
+                let u = uniform(seed, i);
+                let Some(s) = bsdf.sample(wo, lobe(seed, i), u, MODE) else {
                     continue;
                 };
                 some += 1;
@@ -136,7 +143,7 @@ fn phong_weight_has_closed_form_at_normal_incidence() {
     for ns in [1.0f32, 30.0, 1000.0] {
         let bsdf = Bsdf::Phong(Phong::new(Vec3::ZERO, Vec3::ONE, ns));
         for i in 0..10_000 {
-            let Some(s) = bsdf.sample(Vec3::Z, uniform(7, i), MODE) else {
+            let Some(s) = bsdf.sample(Vec3::Z, lobe(7, i), uniform(7, i), MODE) else {
                 continue;
             };
             let expected = (ns + 2.0) / (ns + 1.0) * s.wi.z;
@@ -175,7 +182,7 @@ fn diffuse_exact_values() {
         let wo_below = Vec3::new(wo.x, wo.y, -wo.z);
         assert_eq!(bsdf.eval(wo_below, wi, MODE), Vec3::ZERO);
         assert_eq!(bsdf.pdf(wo_below, wi, MODE).0, 0.0);
-        assert!(bsdf.sample(wo_below, Vec2::splat(0.3), MODE).is_none());
+        assert!(bsdf.sample(wo_below, 0.3, Vec2::splat(0.3), MODE).is_none());
     }
     assert_eq!(
         bsdf.flags(),
@@ -195,7 +202,7 @@ fn every_bsdf_vanishes_below_the_horizon() {
             }
             if wo.z <= 0.0 {
                 assert!(
-                    bsdf.sample(wo, uniform(13, i), MODE).is_none(),
+                    bsdf.sample(wo, lobe(13, i), uniform(13, i), MODE).is_none(),
                     "{name} {wo}"
                 );
             }
@@ -272,7 +279,7 @@ fn phong_with_zero_reflectance_is_inert() {
             let wi = outgoing(uniform(3, i).x.max(1e-3), 0.1 * i as f32);
             assert_eq!(bsdf.eval(wo, wi, MODE), Vec3::ZERO);
             assert!(bsdf.pdf(wo, wi, MODE).0.is_finite());
-            assert!(bsdf.sample(wo, uniform(4, i), MODE).is_none());
+            assert!(bsdf.sample(wo, lobe(4, i), uniform(4, i), MODE).is_none());
         }
     }
 }
@@ -315,7 +322,7 @@ fn eval_is_reciprocal() {
 fn mc_albedo(bsdf: &Bsdf, wo: Vec3, n: u64, seed: u64) -> (DVec3, DVec3) {
     let (mut sum, mut sum2) = (DVec3::ZERO, DVec3::ZERO);
     for i in 0..n {
-        if let Some(s) = bsdf.sample(wo, uniform(seed, i), MODE) {
+        if let Some(s) = bsdf.sample(wo, lobe(seed, i), uniform(seed, i), MODE) {
             let w = s.weight().as_dvec3();
             sum += w;
             sum2 += w * w;
@@ -456,7 +463,7 @@ fn degenerate_uniforms_give_none_or_valid_samples() {
             for ux in values {
                 for uy in values {
                     let u = Vec2::new(ux, uy);
-                    let Some(s) = bsdf.sample(wo, u, MODE) else {
+                    let Some(s) = bsdf.sample(wo, ux, u, MODE) else {
                         continue;
                     };
                     let ctx = format!("{name} wo={wo} u={u}: {s:?}");

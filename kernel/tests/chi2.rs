@@ -4,7 +4,7 @@
 //! 1. Map directions to the unit square by a [`Domain`] and histogram `RES[0] x RES[1]` cells.
 //!    Both resolutions are odd, so the horizon (cosθ = 0, the middle of the spherical domain)
 //!    is never a cell edge.
-//! 2. Draw `SAMPLES` samples with `IndependentSampler` (u = `next_2d()`); a sample for which
+//! 2. Draw `SAMPLES` samples with `IndependentSampler` (`uc = next_1d()`, then `u = next_2d()`); a sample for which
 //!    `sample()` returns `None` is drawn but lands in no cell: it goes to an extra "nowhere"
 //!    category whose expected count is `N·(1 − ∫pdf)`, so the test also sees lost mass.
 //! 3. Expected counts: integrate `pdf()` over every cell (adaptive Gauss–Legendre, see
@@ -428,7 +428,7 @@ fn chi_square(observed: &[u64], expected: &[f64]) -> (f64, usize, f64, u64) {
 
 /// Draws `samples` directions with `sample` and tests them against `pdf` in every domain.
 fn run_chi2(
-    sample: &dyn Fn(Vec2) -> Option<Vec3>,
+    sample: &dyn Fn(f32, Vec2) -> Option<Vec3>,
     pdf: &dyn Fn(DVec3) -> f64,
     domains: &[Domain],
     samples: u32,
@@ -439,7 +439,8 @@ fn run_chi2(
     let (mut none, mut pdf_zero) = (0u64, 0u64);
     for i in 0..samples {
         let mut sampler = IndependentSampler::new(seed, u64::from(i), 0);
-        let Some(wi) = sample(sampler.next_2d()) else {
+        let uc = sampler.next_1d();
+        let Some(wi) = sample(uc, sampler.next_2d()) else {
             none += 1;
             continue;
         };
@@ -615,7 +616,7 @@ fn chi2_bsdf_sample_matches_pdf() {
         let bsdf = cfg.bsdf;
         let domains = domains_for(wo, cfg.lobe);
         let outcomes = run_chi2(
-            &|u| bsdf.sample(wo, u, MODE).map(|s| s.wi),
+            &|uc, u| bsdf.sample(wo, uc, u, MODE).map(|s| s.wi),
             &|w| f64::from(bsdf.pdf(wo, w.as_vec3(), MODE).0),
             &domains,
             SAMPLES,
@@ -665,7 +666,7 @@ fn negative_control(
     let wo = outgoing(cos_theta_o);
     let domains = domains_for(wo, lobe);
     let outcomes = run_chi2(
-        &|u| bsdf.sample(wo, u, MODE).map(|s| s.wi),
+        &|uc, u| bsdf.sample(wo, uc, u, MODE).map(|s| s.wi),
         &|w| f64::from(wrong_pdf(wo, w.as_vec3())),
         &domains,
         SAMPLES,
@@ -752,7 +753,7 @@ fn chi2_fails_on_samples_where_the_pdf_is_zero() {
     let bsdf = Bsdf::Diffuse(Diffuse::new(Vec3::splat(0.5)));
     let wo = outgoing(0.7);
     let out = run_chi2(
-        &|u| bsdf.sample(wo, u, MODE).map(|s| s.wi),
+        &|uc, u| bsdf.sample(wo, uc, u, MODE).map(|s| s.wi),
         // Claims nothing is ever sampled with y < 0 (and twice as much elsewhere).
         &|w| {
             if w.y < 0.0 {

@@ -167,7 +167,7 @@ fn bsdf_samplers_survive_extreme_uniforms_and_materials() {
         }
         for wo in extreme_wos() {
             for u in extreme_2d() {
-                let Some(s) = bsdf.sample(wo, u, MODE) else {
+                let Some(s) = bsdf.sample(wo, u.x, u, MODE) else {
                     continue;
                 };
                 samples += 1;
@@ -207,7 +207,7 @@ fn black_phong_has_no_nan_anywhere() {
         for bsdf in [Bsdf::Phong(p), Bsdf::Mixture(p)] {
             for wo in extreme_wos() {
                 for u in extreme_2d() {
-                    assert!(bsdf.sample(wo, u, MODE).is_none(), "{bsdf:?} {wo} {u}");
+                    assert!(bsdf.sample(wo, u.x, u, MODE).is_none(), "{bsdf:?} {wo} {u}");
                     let wi = warp::sample_cosine_hemisphere(u);
                     assert_eq!(bsdf.eval(wo, wi, MODE), Vec3::ZERO);
                     let pdf = bsdf.pdf(wo, wi, MODE).0;
@@ -222,8 +222,10 @@ fn black_phong_has_no_nan_anywhere() {
 fn mc_albedo(bsdf: &Bsdf, wo: Vec3, n: u32, seed: u64) -> (DVec3, DVec3) {
     let (mut sum, mut sum2) = (DVec3::ZERO, DVec3::ZERO);
     for i in 0..n {
-        let u = IndependentSampler::new(seed, u64::from(i), 0).next_2d();
-        if let Some(s) = bsdf.sample(wo, u, MODE) {
+        let mut sampler = IndependentSampler::new(seed, u64::from(i), 0);
+        let uc = sampler.next_1d();
+        let u = sampler.next_2d();
+        if let Some(s) = bsdf.sample(wo, uc, u, MODE) {
             let w = s.weight().as_dvec3();
             sum += w;
             sum2 += w * w;
@@ -401,10 +403,7 @@ fn closed_box_does_not_leak_at_any_scale_or_offset() {
         let mut nodes = vec![BvhNode::default(); max_nodes(bounds.len())];
         let mut order = vec![0u32; bounds.len()];
         let used = build(&bounds, &mut nodes, &mut order).unwrap();
-        let materials = [Material {
-            bsdf: Bsdf::Diffuse(Diffuse::new(Vec3::splat(0.8))),
-            emission: Vec3::ZERO,
-        }];
+        let materials = [Material::diffuse(Vec3::splat(0.8))];
         let triangle_materials = vec![0u32; triangles.len()];
         let scene = SceneView {
             positions: &positions,
@@ -419,6 +418,7 @@ fn closed_box_does_not_leak_at_any_scale_or_offset() {
                 prim_order: &order,
             }
             .into(),
+            textures: ember_kernel::texture::Textures::NONE,
         };
         scene.validate().unwrap();
         let label = format!("scale {scale:e}, offset {offset:e}");
@@ -487,10 +487,7 @@ impl EmitterScene {
             normals: Vec::new(),
             triangles: Vec::new(),
             triangle_materials: Vec::new(),
-            materials: vec![Material {
-                bsdf: Bsdf::Diffuse(Diffuse::new(Vec3::ZERO)),
-                emission: Vec3::splat(1e6),
-            }],
+            materials: vec![Material::diffuse(Vec3::ZERO).with_emission(Vec3::splat(1e6))],
             emitter_triangles: (0..tris.len() as u32).collect(),
             emitter_cdf: cdf.to_vec(),
         };
@@ -520,6 +517,7 @@ impl EmitterScene {
                 prim_order: &[],
             }
             .into(),
+            textures: ember_kernel::texture::Textures::NONE,
         }
     }
 }
@@ -668,6 +666,7 @@ fn exponent_of(b: &Bsdf) -> f32 {
     match b {
         Bsdf::Diffuse(_) => 0.0,
         Bsdf::Phong(p) | Bsdf::Mixture(p) => p.exponent,
+        Bsdf::Conductor(_) | Bsdf::Dielectric(_) => 0.0,
     }
 }
 
@@ -700,7 +699,7 @@ proptest! {
         b in bsdf(), wo in direction(), ux in 0.0f32..1.0, uy in 0.0f32..1.0
     ) {
         let u = Vec2::new(ux, uy);
-        if let Some(s) = b.sample(wo, u, MODE) {
+        if let Some(s) = b.sample(wo, ux, u, MODE) {
             prop_assert!(wo.z > 0.0);
             prop_assert!(unit(s.wi) && s.wi.z > 0.0, "{s:?}");
             prop_assert!(s.pdf.0.is_finite() && s.pdf.0 > 0.0, "{s:?}");

@@ -25,7 +25,6 @@
 //!     cargo bench -p ember-tests --bench bvh -- 'closest/incoherent'   # a filter
 
 use criterion::{BatchSize, BenchmarkId, Criterion, SamplingMode, Throughput};
-use ember_kernel::bsdf::{Bsdf, Diffuse};
 use ember_kernel::bvh::{self, Bvh, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
 use ember_kernel::geometry::{Aabb, Ray};
@@ -221,10 +220,7 @@ impl Scene {
             name,
             normals,
             triangle_materials: vec![0; triangles.len()],
-            materials: vec![Material {
-                bsdf: Bsdf::Diffuse(Diffuse::new(Rgb::splat(0.5))),
-                emission: Rgb::ZERO,
-            }],
+            materials: vec![Material::diffuse(Rgb::splat(0.5))],
             positions,
             triangles,
             nodes,
@@ -257,6 +253,7 @@ impl Scene {
                 }
                 .into()
             },
+            textures: ember_kernel::texture::Textures::NONE,
         }
     }
 

@@ -8,7 +8,6 @@ use common::*;
 use ember_cli::bake::{bake, BakeSettings, BAKE_INSET};
 use ember_cli::render::{render, RenderSettings, Rendered, Shard};
 use ember_cli::LoadedScene;
-use ember_kernel::bsdf::{Bsdf, Diffuse};
 use ember_kernel::bvh::{self, Bvh, BvhNode};
 use ember_kernel::geometry::Ray;
 use ember_kernel::integrator::{
@@ -180,17 +179,8 @@ impl Room {
             triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
             materials_of.extend([1, 1]);
         }
-        let diffuse = Bsdf::Diffuse(Diffuse::new(Rgb::splat(0.5)));
-        let materials = [
-            Material {
-                bsdf: diffuse,
-                emission: Rgb::ZERO,
-            },
-            Material {
-                bsdf: diffuse,
-                emission: Rgb::splat(4.0),
-            },
-        ];
+        let diffuse = Material::diffuse(Rgb::splat(0.5));
+        let materials = [diffuse, diffuse.with_emission(Rgb::splat(4.0))];
         let mut nodes = vec![BvhNode::default(); bvh::max_nodes(triangles.len())];
         let mut order = vec![0u32; triangles.len()];
         let used = bvh::build_triangles(&positions, &triangles, &mut nodes, &mut order).unwrap();
@@ -220,6 +210,7 @@ impl Room {
                 prim_order: &self.order,
             }
             .into(),
+            textures: ember_kernel::texture::Textures::NONE,
         }
     }
 }

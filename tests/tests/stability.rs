@@ -1012,7 +1012,7 @@ fn extreme_materials_render_finite_bounded_values() {
         let mut data = base.data.clone();
         for m in &mut data.materials {
             *m = Material {
-                bsdf: bsdf_for(illum, kd, ks, ns),
+                surface: bsdf_for(illum, kd, ks, ns),
                 emission: Rgb::ONE,
             };
         }

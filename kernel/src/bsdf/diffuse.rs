@@ -26,7 +26,7 @@ impl Diffuse {
 
     #[inline]
     #[must_use]
-    pub fn sample(&self, wo: Vec3, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+    pub fn sample(&self, wo: Vec3, _uc: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }
@@ -36,6 +36,7 @@ impl Diffuse {
             f: self.eval(wo, wi, mode),
             pdf: SolidAnglePdf(warp::cosine_hemisphere_pdf(wi.z)),
             flags: self.flags(),
+            eta: 1.0,
         })
     }
 
@@ -51,6 +52,6 @@ impl Diffuse {
     #[inline]
     #[must_use]
     pub fn flags(&self) -> BsdfFlags {
-        BsdfFlags::REFLECTION.union(BsdfFlags::DIFFUSE)
+        BsdfFlags::DIFFUSE_REFLECTION
     }
 }

@@ -1,6 +1,5 @@
 use super::{BsdfFlags, BsdfSample, TransportMode};
 use crate::math::{luminance, reflect_local, warp, Frame, SolidAnglePdf, INV_2PI, INV_PI};
-use crate::sampler::ONE_MINUS_EPSILON;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -25,14 +24,30 @@ impl Phong {
     /// `kd`, `ks` and `exponent` as read from the MTL. Negative exponents are treated as 0.
     #[must_use]
     pub fn new(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
-        let m = (kd + ks).max_element();
+        let (scale, specular_weight) = Self::weights(kd, ks, kd, ks);
+        Self::with_weights(kd, ks, exponent, scale, specular_weight)
+    }
+
+    /// The energy clamp `scale` and the glossy sampling weight `w_s` of a Phong material whose
+    /// reflectances are textures, from their per-channel maxima and averages (TinyRender's
+    /// `getMax`/`getAverage`; for constants, maximum and average are the colour itself):
+    /// `scale = 0.99 / M` when `M = max component of (max Kd + max Ks)` exceeds 1, and
+    /// `w_s = Ls / (Ld + Ls)` with `L = luminance(average · scale)`.
+    #[must_use]
+    pub fn weights(kd_max: Rgb, ks_max: Rgb, kd_avg: Rgb, ks_avg: Rgb) -> (f32, f32) {
+        let m = (kd_max + ks_max).max_element();
         let scale = if m > 1.0 { 0.99 / m } else { 1.0 };
-        // TinyRender: getLuminance(texture average · scale); the average of a constant texture
-        // is the colour itself.
-        let ld = luminance(kd * scale);
-        let ls = luminance(ks * scale);
+        let ld = luminance(kd_avg * scale);
+        let ls = luminance(ks_avg * scale);
         // Kd = Ks = 0 gives 0/0 in TinyRender; such a BSDF reflects nothing, any weight works.
         let specular_weight = if ld + ls > 0.0 { ls / (ld + ls) } else { 0.0 };
+        (scale, specular_weight)
+    }
+
+    /// A Phong BSDF with precomputed [`Self::weights`] (the reflectances at one surface point
+    /// of a textured material).
+    #[must_use]
+    pub fn with_weights(kd: Rgb, ks: Rgb, exponent: f32, scale: f32, specular_weight: f32) -> Self {
         Self {
             kd,
             ks,
@@ -59,25 +74,19 @@ impl Phong {
 
     #[inline]
     #[must_use]
-    pub fn sample(&self, wo: Vec3, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+    pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }
-        let ws = self.specular_weight;
-        let (wi, flags) = if u.x < ws {
-            // Reuse u.x, rescaled to [0, 1), for the lobe direction.
-            let ux = (u.x / ws).min(ONE_MINUS_EPSILON);
-            let local = warp::sample_phong_lobe(Vec2::new(ux, u.y), self.exponent);
+        // `uc` picks the lobe, `u` the direction within it.
+        let (wi, flags) = if uc < self.specular_weight {
+            let local = warp::sample_phong_lobe(u, self.exponent);
             let frame = Frame::from_normal(reflect_local(wo));
-            (
-                frame.to_world(local),
-                BsdfFlags::REFLECTION.union(BsdfFlags::GLOSSY),
-            )
+            (frame.to_world(local), BsdfFlags::GLOSSY_REFLECTION)
         } else {
-            let ux = ((u.x - ws) / (1.0 - ws)).min(ONE_MINUS_EPSILON);
             (
-                warp::sample_cosine_hemisphere(Vec2::new(ux, u.y)),
-                BsdfFlags::REFLECTION.union(BsdfFlags::DIFFUSE),
+                warp::sample_cosine_hemisphere(u),
+                BsdfFlags::DIFFUSE_REFLECTION,
             )
         };
         if wi.z <= 0.0 {
@@ -88,6 +97,7 @@ impl Phong {
             f: self.eval(wo, wi, mode),
             pdf: self.pdf(wo, wi, mode),
             flags,
+            eta: 1.0,
         })
     }
 
@@ -109,12 +119,12 @@ impl Phong {
     #[inline]
     #[must_use]
     pub fn flags(&self) -> BsdfFlags {
-        let mut f = BsdfFlags::REFLECTION;
+        let mut f = BsdfFlags::NONE;
         if self.specular_weight > 0.0 {
-            f = f.union(BsdfFlags::GLOSSY);
+            f = f.union(BsdfFlags::GLOSSY_REFLECTION);
         }
         if self.specular_weight < 1.0 {
-            f = f.union(BsdfFlags::DIFFUSE);
+            f = f.union(BsdfFlags::DIFFUSE_REFLECTION);
         }
         f
     }

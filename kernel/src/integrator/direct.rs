@@ -1,6 +1,6 @@
 //! Next-event estimation: direct light from a point sampled on the emitters.
 
-use crate::bsdf::{Bsdf, TransportMode};
+use crate::bsdf::{SurfaceBsdf, TransportMode};
 use crate::emitter::sample_emitter;
 use crate::geometry::spawn_ray_to;
 use crate::math::SolidAnglePdf;
@@ -12,23 +12,23 @@ use glam::{Vec2, Vec3};
 /// An unoccluded emitter sample seen from a surface point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DirectSample {
-    /// `f · cosθᵢ · Le / p_ω`: the one-sample estimate of direct reflected radiance.
+    /// `f · |cosθᵢ| · Le / p_ω`: the one-sample estimate of direct scattered radiance.
     pub contribution: Rgb,
-    /// Direction to the light in the shading frame.
+    /// World-space unit direction to the light.
     pub wi: Vec3,
     /// Density of `wi` under emitter sampling, per unit solid angle.
     pub pdf: SolidAnglePdf,
 }
 
 /// Samples a point on the emitters and returns its unweighted contribution, or `None` when the
-/// point is occluded, faces away, lies below the shading hemisphere or the BSDF is zero there.
-/// The shadow ray, when one is traced, is reported to `sampler` ([`Sampler::count_ray`]); no
+/// point is occluded, faces away, or the BSDF is zero for it (delta lobes, the wrong side). The
+/// shadow ray, when one is traced, is reported to `sampler` ([`Sampler::count_ray`]); no
 /// numbers are drawn from it.
 #[inline]
 pub fn sample_direct<S: Sampler>(
     scene: &SceneView<'_>,
     si: &SurfaceInteraction,
-    bsdf: &Bsdf,
+    bsdf: &SurfaceBsdf,
     u_select: f32,
     u_light: Vec2,
     sampler: &mut S,
@@ -39,13 +39,9 @@ pub fn sample_direct<S: Sampler>(
     if dist2.is_nan() || dist2 <= 0.0 {
         return None;
     }
-    let wi_world = to_light / crate::math::sqrt(dist2);
-    let cos_light = es.n.dot(-wi_world);
+    let wi = to_light / crate::math::sqrt(dist2);
+    let cos_light = es.n.dot(-wi);
     if cos_light <= 0.0 {
-        return None;
-    }
-    let wi = si.frame.to_local(wi_world);
-    if wi.z <= 0.0 {
         return None;
     }
     let f = bsdf.eval(si.wo, wi, TransportMode::Radiance);
@@ -59,7 +55,7 @@ pub fn sample_direct<S: Sampler>(
     }
     let pdf = es.pdf.to_solid_angle(dist2, cos_light);
     Some(DirectSample {
-        contribution: f * es.radiance * (wi.z / pdf.0),
+        contribution: f * es.radiance * (bsdf.abs_cos(wi) / pdf.0),
         wi,
         pdf,
     })

@@ -1,5 +1,6 @@
 //! Light transport estimators. Each integrator is a function of the scene, a ray and a
-//! [`Sampler`]; [`render_pixel`] averages them over a range of sample indices.
+//! [`Sampler`]; [`render_pixel`] averages them over a range of sample indices. The three path
+//! tracers are one loop ([`li_path`]) with a [`PathStrategy`] each.
 //!
 //! Depth convention (TinyRender, FORMAT.md §6): `max_depth` counts scattering vertices between
 //! the camera and the emitter. 0: emitters seen directly; 1: direct lighting; N: up to N
@@ -14,16 +15,15 @@
 //! and Mitsuba 3 do.
 
 mod bake;
+pub mod dims;
 mod direct;
-mod explicit;
-mod implicit;
-mod mis;
+mod path;
 
 pub use bake::{bake_vertex, BakeEstimator, BakePoint};
 pub use direct::{sample_direct, DirectSample};
-pub use explicit::{li_explicit, li_explicit_from_surface};
-pub use implicit::li_implicit;
-pub use mis::{li_mis, li_mis_from_surface, power_heuristic};
+pub use path::{
+    li_path, li_path_from_surface, power_heuristic, DirectLighting, PathStrategy, Roulette,
+};
 
 use crate::camera::Camera;
 use crate::geometry::Ray;
@@ -48,6 +48,19 @@ pub enum Integrator {
     /// Emitter and BSDF sampling of direct light at every vertex, combined by multiple
     /// importance sampling (power heuristic). Not a TinyRender integrator: ember's best.
     PathMis,
+}
+
+impl Integrator {
+    /// The path loop settings of this estimator.
+    #[inline]
+    #[must_use]
+    pub const fn strategy(self) -> PathStrategy {
+        match self {
+            Self::PathImplicit => PathStrategy::IMPLICIT,
+            Self::PathExplicit => PathStrategy::EXPLICIT,
+            Self::PathMis => PathStrategy::MIS,
+        }
+    }
 }
 
 /// Path length and termination settings.
@@ -174,16 +187,24 @@ impl PathSettings {
     }
 
     /// Throughput-adaptive Russian roulette (pbrt-v4, Mitsuba 3): from `rr_depth` bounces on,
-    /// a path survives with probability equal to its largest throughput component, capped by
-    /// `rr_prob`. Paths that can no longer carry much light end early, bright ones go on.
-    /// Unbiased like the fixed rule, with far fewer rays per sample in absorbing scenes.
-    /// Applies only when `max_depth == −1`, like [`Self::survives_roulette`].
+    /// a path survives with probability equal to the largest component of its throughput
+    /// times `eta_scale` (the product of η′² over the dielectric crossings so far, which
+    /// undoes their radiance scaling; pbrt's `etaScale`), capped by `rr_prob`. Paths that can
+    /// no longer carry much light end early, bright ones go on. Unbiased like the fixed rule,
+    /// with far fewer rays per sample in absorbing scenes. Applies only when
+    /// `max_depth == −1`, like [`Self::survives_roulette`].
     #[inline]
-    pub fn survives_adaptive_roulette(&self, bounces: u32, u: f32, beta: &mut Rgb) -> bool {
+    pub fn survives_adaptive_roulette(
+        &self,
+        bounces: u32,
+        u: f32,
+        eta_scale: f32,
+        beta: &mut Rgb,
+    ) -> bool {
         if self.max_depth >= 0 || (bounces as i64) < i64::from(self.rr_depth) {
             return true;
         }
-        let q = beta.max_element().min(self.rr_prob);
+        let q = (*beta * eta_scale).max_element().min(self.rr_prob);
         // Written so that a NaN throughput ends the path.
         if u < q {
             *beta /= q;
@@ -209,11 +230,7 @@ pub fn li<S: Sampler>(
     settings: &PathSettings,
     sampler: &mut S,
 ) -> Rgb {
-    match integrator {
-        Integrator::PathImplicit => li_implicit(scene, ray, settings, sampler),
-        Integrator::PathExplicit => li_explicit(scene, ray, settings, sampler),
-        Integrator::PathMis => li_mis(scene, ray, settings, sampler),
-    }
+    li_path(scene, ray, settings, &integrator.strategy(), sampler)
 }
 
 /// Sums of the samples of one pixel: enough for the mean and the sample variance.
@@ -267,7 +284,7 @@ pub fn render_pixel(
     let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
     for i in first..first + count {
         let mut sampler = RayCounting::new(IndependentSampler::new(seed, pixel, i));
-        let ray = camera.generate_ray(x, y, sampler.next_2d());
+        let ray = camera.generate_ray(x, y, dims::camera(&mut sampler));
         stats.add(li(integrator, scene, &ray, settings, &mut sampler));
         stats.rays += u64::from(sampler.rays);
     }

@@ -8,10 +8,9 @@
 //! test (`tests/capi/cornell.c`) builds the same box in C from the same literal quads.
 #![no_std]
 
-use ember_kernel::bsdf::{Bsdf, Diffuse, Phong};
 use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
-use ember_kernel::emitter::build_emitter_table;
+use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
 use ember_kernel::integrator::{
     bake_vertex, render_pixel, BakeEstimator, BakePoint, Integrator, PathSettings, PixelStats,
     Shortcuts,
@@ -70,15 +69,12 @@ impl MaterialDesc {
     #[must_use]
     pub fn material(&self) -> Material {
         let (kd, ks) = (Rgb::from_array(self.kd), Rgb::from_array(self.ks));
-        let bsdf = match self.kind {
-            0 => Bsdf::Diffuse(Diffuse::new(kd)),
-            1 => Bsdf::Phong(Phong::new(kd, ks, self.ns)),
-            _ => Bsdf::Mixture(Phong::new(kd, ks, self.ns)),
+        let material = match self.kind {
+            0 => Material::diffuse(kd),
+            1 => Material::phong(kd, ks, self.ns),
+            _ => Material::mixture(kd, ks, self.ns),
         };
-        Material {
-            bsdf,
-            emission: Rgb::from_array(self.ke),
-        }
+        material.with_emission(Rgb::from_array(self.ke))
     }
 }
 
@@ -383,7 +379,8 @@ impl Scene {
             &s.positions,
             &s.triangles,
             &s.triangle_materials,
-            |m| MATERIALS[m as usize].ke != [0.0; 3],
+            |m| Rgb::from_array(MATERIALS[m as usize].ke),
+            EmitterPolicy::Area,
             &mut s.emitter_triangles,
             &mut s.emitter_cdf,
         )
@@ -416,6 +413,7 @@ impl Scene {
                 prim_order: &self.bvh_prim_order,
             }
             .into(),
+            textures: ember_kernel::texture::Textures::NONE,
         }
     }
 }
@@ -462,6 +460,7 @@ pub fn bake_point(scene: &SceneView<'_>, estimator: BakeEstimator, i: usize) -> 
         p: Vec3::from_array(p),
         n: Vec3::from_array(n),
         material,
+        uv: ember_kernel::Vec2::ZERO,
     };
     bake_vertex(
         scene,

@@ -1,0 +1,143 @@
+//! [`SurfaceBsdf`]: a [`Bsdf`] at a surface point, in world space (pbrt-v4's `BSDF` class).
+//! Integrators use BSDFs only through it, so none of them converts frames, tests sides or
+//! corrects for shading normals itself.
+
+use super::{Bsdf, BsdfFlags, TransportMode};
+use crate::math::{Frame, SolidAnglePdf};
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+
+/// A BSDF with the shading frame and the geometric normal of the point it is at.
+///
+/// - **Frames.** Directions in and out are world-space unit vectors, converted to the local
+///   shading frame for the [`Bsdf`] and back.
+/// - **Sides.** A pair of directions scatters only when the shading frame and the geometric
+///   normal agree on whether it is a reflection (both on one side) or a transmission: where
+///   an interpolated normal tilts a direction across the true surface, `eval`, `pdf` and
+///   `sample` give nothing instead of letting light leak through the surface (pbrt-v3's
+///   `BSDF::f` rule and Mitsuba's light-leak guard, here in both transport modes so that
+///   paths traced from either end see the same scattering). Which side is the front is the
+///   BSDF's business: opaque BSDFs are one-sided (TinyRender's convention), glass two-sided.
+/// - **Adjoint shading normals.** In [`TransportMode::Importance`] the BSDF is multiplied by
+///   `|wo·n_s| |wi·n_g| / (|wo·n_g| |wi·n_s|)` (Veach 1997, §5.3, eq. 5.19), the correction
+///   that makes light paths carry the same contribution as camera paths when shading normals
+///   differ from geometric ones. pbrt-v4 omits it (its issues #385, #526). With it, for every
+///   pair of directions `a`, `b`:
+///   `f_imp(a, b)·|b·n_s|/|b·n_g| = f_rad(b, a)·|a·n_s|/|a·n_g|` (× η′² across glass).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceBsdf {
+    pub bsdf: Bsdf,
+    /// Shading frame (z = interpolated normal).
+    pub frame: Frame,
+    /// Unit geometric normal.
+    pub ng: Vec3,
+}
+
+/// A sampled scattering direction in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scatter {
+    /// World-space direction of the next vertex.
+    pub wi: Vec3,
+    /// BSDF value in the sampled transport mode (delta lobes: weight / |cosθᵢ|).
+    pub f: Rgb,
+    /// Solid-angle density of `wi` (delta lobes: the probability of the lobe).
+    pub pdf: SolidAnglePdf,
+    pub flags: BsdfFlags,
+    /// Relative index of refraction of a transmission, 1 for reflection.
+    pub eta: f32,
+    /// Throughput weight `f·|wi·n_s|/pdf`.
+    pub weight: Rgb,
+}
+
+impl SurfaceBsdf {
+    #[inline]
+    #[must_use]
+    pub fn new(bsdf: Bsdf, frame: Frame, ng: Vec3) -> Self {
+        Self { bsdf, frame, ng }
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn flags(&self) -> BsdfFlags {
+        self.bsdf.flags()
+    }
+
+    /// `|w·n_s|`, the cosine of a world direction with the shading normal.
+    #[inline]
+    #[must_use]
+    pub fn abs_cos(&self, w: Vec3) -> f32 {
+        w.dot(self.frame.n).abs()
+    }
+
+    /// Whether the geometric and the shading normal agree on the sides of `wo` and `wi`.
+    #[inline]
+    fn sides_agree(&self, wo: Vec3, wo_l: Vec3, wi: Vec3, wi_l: Vec3) -> bool {
+        let geometric = wo.dot(self.ng) * wi.dot(self.ng);
+        let shading = wo_l.z * wi_l.z;
+        geometric != 0.0 && shading != 0.0 && (geometric > 0.0) == (shading > 0.0)
+    }
+
+    /// The adjoint shading-normal factor (1 in radiance transport).
+    #[inline]
+    fn correction(&self, mode: TransportMode, wo: Vec3, wo_l: Vec3, wi: Vec3, wi_l: Vec3) -> f32 {
+        match mode {
+            TransportMode::Radiance => 1.0,
+            TransportMode::Importance => {
+                let num = wo_l.z.abs() * wi.dot(self.ng).abs();
+                let den = wo.dot(self.ng).abs() * wi_l.z.abs();
+                if den > 0.0 {
+                    num / den
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    /// The BSDF value for world directions `wo`, `wi` (0 for delta lobes).
+    #[inline]
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Rgb {
+        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        if !self.sides_agree(wo, wo_l, wi, wi_l) {
+            return Rgb::ZERO;
+        }
+        self.bsdf.eval(wo_l, wi_l, mode) * self.correction(mode, wo, wo_l, wi, wi_l)
+    }
+
+    /// The solid-angle density with which [`Self::sample`] returns `wi` (0 for delta lobes).
+    #[inline]
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> SolidAnglePdf {
+        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        if !self.sides_agree(wo, wo_l, wi, wi_l) {
+            return SolidAnglePdf(0.0);
+        }
+        self.bsdf.pdf(wo_l, wi_l, mode)
+    }
+
+    /// Samples the direction of the next vertex for world direction `wo` ([`Bsdf::sample`]).
+    #[inline]
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2, mode: TransportMode) -> Option<Scatter> {
+        let wo_l = self.frame.to_local(wo);
+        let s = self.bsdf.sample(wo_l, uc, u, mode)?;
+        let wi = self.frame.to_world(s.wi);
+        if !self.sides_agree(wo, wo_l, wi, s.wi) {
+            return None;
+        }
+        let f = s.f * self.correction(mode, wo, wo_l, wi, s.wi);
+        let weight = f * (s.wi.z.abs() / s.pdf.0);
+        if f == Rgb::ZERO || !crate::math::is_finite(weight) {
+            return None;
+        }
+        Some(Scatter {
+            wi,
+            f,
+            pdf: s.pdf,
+            flags: s.flags,
+            eta: s.eta,
+            weight,
+        })
+    }
+}

@@ -1,0 +1,78 @@
+//! The layout of a path sample's dimensions: which uniform number is used for what.
+//!
+//! A camera sample starts with [`CAMERA`] dimensions (the offset within the pixel); then every
+//! scattering vertex of the path draws [`PER_BOUNCE`] dimensions in the order of the offsets
+//! below, whether or not it uses all of them, so that dimension `CAMERA + k·PER_BOUNCE + o`
+//! always has the same meaning. A bake sample starts with [`BAKE_VIEW`] dimensions instead
+//! (the view direction), then the same per-bounce layout.
+
+use crate::sampler::Sampler;
+use glam::Vec2;
+
+/// Dimensions of the camera sample: the 2D offset within the pixel.
+pub const CAMERA: u32 = 2;
+/// Dimensions of a bake sample before its first bounce: the 2D view direction.
+pub const BAKE_VIEW: u32 = 2;
+
+/// Offset of the 1D number that selects an emitter for next-event estimation.
+pub const LIGHT_SELECT: u32 = 0;
+/// Offset of the 2D point on the selected emitter.
+pub const LIGHT_POSITION: u32 = 1;
+/// Offset of the 1D number that chooses the BSDF lobe (`uc` of [`crate::bsdf::Bsdf::sample`]).
+pub const BSDF_LOBE: u32 = 3;
+/// Offset of the 2D number that chooses the direction within the lobe.
+pub const BSDF_DIRECTION: u32 = 4;
+/// Offset of the 1D number of Russian roulette.
+pub const ROULETTE: u32 = 6;
+/// Dimensions drawn per scattering vertex.
+pub const PER_BOUNCE: u32 = 7;
+
+/// The numbers of one scattering vertex, drawn in the layout's order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounce {
+    pub light_select: f32,
+    pub light: Vec2,
+    pub lobe: f32,
+    pub direction: Vec2,
+    pub roulette: f32,
+}
+
+impl Bounce {
+    /// Draws the [`PER_BOUNCE`] numbers of the next vertex.
+    #[inline]
+    pub fn draw<S: Sampler>(sampler: &mut S) -> Self {
+        let light_select = sampler.next_1d();
+        let light = sampler.next_2d();
+        let lobe = sampler.next_1d();
+        let direction = sampler.next_2d();
+        let roulette = sampler.next_1d();
+        Self {
+            light_select,
+            light,
+            lobe,
+            direction,
+            roulette,
+        }
+    }
+}
+
+/// Draws the camera sample's [`CAMERA`] numbers.
+#[inline]
+pub fn camera<S: Sampler>(sampler: &mut S) -> Vec2 {
+    sampler.next_2d()
+}
+
+// The offsets are the order `Bounce::draw` draws in.
+const _: () = assert!(
+    LIGHT_SELECT + 1 == LIGHT_POSITION
+        && LIGHT_POSITION + 2 == BSDF_LOBE
+        && BSDF_LOBE + 1 == BSDF_DIRECTION
+        && BSDF_DIRECTION + 2 == ROULETTE
+        && ROULETTE + 1 == PER_BOUNCE
+);
+
+/// Draws a bake sample's [`BAKE_VIEW`] numbers.
+#[inline]
+pub fn bake_view<S: Sampler>(sampler: &mut S) -> Vec2 {
+    sampler.next_2d()
+}

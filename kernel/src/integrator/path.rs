@@ -1,0 +1,196 @@
+//! ember's path tracers: one path loop whose state (throughput, η scale, the last scattering
+//! event) is the same for every estimator, and whose differences are the named fields of a
+//! [`PathStrategy`] (Mitsuba 3's `path.cpp` keeps one loop state the same way).
+
+use super::direct::sample_direct;
+use super::{dims, PathSettings};
+use crate::bsdf::{BsdfFlags, SurfaceBsdf, TransportMode};
+use crate::emitter::emitter_pdf;
+use crate::geometry::Ray;
+use crate::math::SolidAnglePdf;
+use crate::sampler::Sampler;
+use crate::scene::{SceneView, SurfaceInteraction};
+use crate::Rgb;
+
+/// How light arriving directly from emitters is found at each scattering vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DirectLighting {
+    /// BSDF sampling only: emission is counted wherever a path lands on an emitter
+    /// (TinyRender's implicit path tracer).
+    BsdfSampling,
+    /// Next-event estimation (an emitter point and a shadow ray) at every vertex with a
+    /// non-delta lobe; emission found by BSDF-sampled rays is counted only after a delta
+    /// bounce, where no next-event estimate was made (TinyRender's explicit path tracer, with
+    /// pbrt's `specularBounce` so that lights seen in mirrors and through glass appear).
+    NextEvent,
+    /// Both, combined by multiple importance sampling with the power heuristic (ember's).
+    Mis,
+}
+
+/// When a path is ended at random, once `max_depth == −1` and `rr_depth` bounces are done.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Roulette {
+    /// Survival with the fixed probability `rr_prob` (TinyRender).
+    Fixed,
+    /// Survival with probability `min(max component of β·η_scale, rr_prob)` (pbrt-v4, Mitsuba 3),
+    /// where `η_scale` undoes the radiance scaling of dielectric crossings so that paths inside
+    /// glass are not killed for being "dim" (pbrt's `etaScale`).
+    Adaptive,
+}
+
+/// What distinguishes the path tracers; everything else is the shared loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PathStrategy {
+    pub direct: DirectLighting,
+    pub roulette: Roulette,
+}
+
+impl PathStrategy {
+    pub const IMPLICIT: Self = Self {
+        direct: DirectLighting::BsdfSampling,
+        roulette: Roulette::Fixed,
+    };
+    pub const EXPLICIT: Self = Self {
+        direct: DirectLighting::NextEvent,
+        roulette: Roulette::Fixed,
+    };
+    pub const MIS: Self = Self {
+        direct: DirectLighting::Mis,
+        roulette: Roulette::Adaptive,
+    };
+}
+
+/// Power heuristic (β = 2) weight of a strategy with density `a` against one with density `b`,
+/// 0 when it is not finite (Mitsuba's guarded `mis_weight`).
+#[inline]
+#[must_use]
+pub fn power_heuristic(a: SolidAnglePdf, b: SolidAnglePdf) -> f32 {
+    let (a2, b2) = (a.0 * a.0, b.0 * b.0);
+    let w = a2 / (a2 + b2);
+    if w.is_finite() {
+        w
+    } else {
+        0.0
+    }
+}
+
+/// Radiance arriving along `ray` (emission seen directly plus scattered light).
+#[inline]
+pub fn li_path<S: Sampler>(
+    scene: &SceneView<'_>,
+    ray: &Ray,
+    settings: &PathSettings,
+    strategy: &PathStrategy,
+    sampler: &mut S,
+) -> Rgb {
+    sampler.count_ray();
+    let Some(hit) = scene.intersect(ray) else {
+        return Rgb::ZERO;
+    };
+    let si = scene.interaction(ray, &hit);
+    let bsdf = scene.bsdf_at(&si);
+    scene.emitted(&si) + li_path_from_surface(scene, si, bsdf, settings, strategy, sampler)
+}
+
+/// Radiance scattered at `si` toward `si.wo` (its own emission excluded), with `bsdf` at `si`
+/// as the first scattering vertex and the scene's materials further on. Per bounce the
+/// sampler's dimensions are laid out as [`dims`] says.
+#[inline]
+pub fn li_path_from_surface<S: Sampler>(
+    scene: &SceneView<'_>,
+    mut si: SurfaceInteraction,
+    mut bsdf: SurfaceBsdf,
+    settings: &PathSettings,
+    strategy: &PathStrategy,
+    sampler: &mut S,
+) -> Rgb {
+    let mut l = Rgb::ZERO;
+    let mut beta = Rgb::ONE;
+    let mut eta_scale = 1.0f32;
+    let mut bounces = 0u32;
+    loop {
+        // `si` is scattering vertex number `bounces`; light reaching it directly completes a
+        // path with `bounces` scattering vertices.
+        bounces += 1;
+        if !settings.allows(bounces) {
+            break;
+        }
+        let u = dims::Bounce::draw(sampler);
+        let flags = bsdf.flags();
+        let next_event = strategy.direct != DirectLighting::BsdfSampling && flags.is_non_specular();
+        if next_event {
+            if let Some(d) = sample_direct(scene, &si, &bsdf, u.light_select, u.light, sampler) {
+                let w = if strategy.direct == DirectLighting::Mis {
+                    let pdf_bsdf = bsdf.pdf(si.wo, d.wi, TransportMode::Radiance);
+                    power_heuristic(d.pdf, pdf_bsdf)
+                } else {
+                    1.0
+                };
+                l += beta * d.contribution * w;
+            }
+        }
+        // The ray leaving the last vertex of a bounded path matters only for the emission it
+        // may find, which next-event estimation has counted unless the bounce is a delta one.
+        let terminal = settings.is_terminal(bounces);
+        if terminal
+            && strategy.direct == DirectLighting::NextEvent
+            && !flags.contains(BsdfFlags::SPECULAR)
+        {
+            break;
+        }
+        let Some(s) = bsdf.sample(si.wo, u.lobe, u.direction, TransportMode::Radiance) else {
+            break;
+        };
+        // Emission found by the sampled ray counts unless next-event estimation has it.
+        let counts_emission = strategy.direct != DirectLighting::NextEvent || s.flags.is_specular();
+        if terminal && !counts_emission {
+            break;
+        }
+        beta *= s.weight;
+        if s.flags.is_transmission() {
+            eta_scale *= s.eta * s.eta;
+        }
+        let survives = match strategy.roulette {
+            Roulette::Fixed => settings.survives_roulette(bounces, u.roulette, &mut beta),
+            Roulette::Adaptive => {
+                settings.survives_adaptive_roulette(bounces, u.roulette, eta_scale, &mut beta)
+            }
+        };
+        if !survives {
+            break;
+        }
+        let next = si.spawn_ray(s.wi);
+        sampler.count_ray();
+        let hit = if terminal {
+            settings.terminal_hit(scene, &next)
+        } else {
+            scene.intersect(&next)
+        };
+        let Some(hit) = hit else {
+            break;
+        };
+        let prev = si;
+        si = scene.interaction(&next, &hit);
+        if counts_emission {
+            let le = scene.emitted(&si);
+            if le != Rgb::ZERO {
+                // A delta bounce has no next-event estimate to share the light with.
+                let w = if strategy.direct == DirectLighting::Mis && !s.flags.is_specular() {
+                    let dist2 = (si.p - prev.p).length_squared();
+                    let cos_light = si.frame.n.dot(-s.wi);
+                    let pdf_light =
+                        emitter_pdf(scene, si.triangle).to_solid_angle(dist2, cos_light);
+                    power_heuristic(s.pdf, pdf_light)
+                } else {
+                    1.0
+                };
+                l += beta * le * w;
+            }
+        }
+        if terminal {
+            break;
+        }
+        bsdf = scene.bsdf_at(&si);
+    }
+    l
+}

@@ -1,0 +1,215 @@
+//! Materials: what a surface is made of, turned into a [`Bsdf`] at each surface point.
+//!
+//! A [`Material`] holds parameters, some of which may be textures; [`Material::bsdf`] reads
+//! the texels at the point's texture coordinates and builds the BSDF there. Materials without
+//! textures never compute texture coordinates.
+
+use crate::bsdf::{Bsdf, Conductor, Dielectric, Diffuse, Phong};
+use crate::texture::{Textures, NO_TEXTURE};
+use crate::Rgb;
+use glam::Vec2;
+
+/// An RGB reflectance: a constant, or a texture when `texture` is not [`NO_TEXTURE`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reflectance {
+    pub value: Rgb,
+    pub texture: u32,
+}
+
+impl Reflectance {
+    #[inline]
+    #[must_use]
+    pub const fn constant(value: Rgb) -> Self {
+        Self {
+            value,
+            texture: NO_TEXTURE,
+        }
+    }
+
+    #[inline]
+    #[must_use]
+    pub const fn texture(id: u32) -> Self {
+        Self {
+            value: Rgb::ZERO,
+            texture: id,
+        }
+    }
+
+    #[inline]
+    #[must_use]
+    pub const fn is_textured(&self) -> bool {
+        self.texture != NO_TEXTURE
+    }
+
+    #[inline]
+    fn at(&self, textures: &Textures<'_>, uv: Vec2) -> Rgb {
+        if self.is_textured() {
+            textures.lookup(self.texture, uv)
+        } else {
+            self.value
+        }
+    }
+}
+
+/// Parameters of the Phong family: reflectances, exponent, and the energy clamp and lobe
+/// weight derived once from the reflectances' maxima and averages ([`Phong::weights`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhongParams {
+    pub kd: Reflectance,
+    pub ks: Reflectance,
+    pub exponent: f32,
+    pub scale: f32,
+    pub specular_weight: f32,
+}
+
+/// The scattering model of a material and its parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Surface {
+    /// Lambertian (`illum 7`).
+    Diffuse { kd: Reflectance },
+    /// TinyRender's modified Phong (`illum` other than 5–8).
+    Phong(PhongParams),
+    /// Diffuse + Phong mixture (`illum 8`).
+    Mixture(PhongParams),
+    /// Metal (`illum 5`): reflectance `Ks`, roughness `alpha` (0: a mirror).
+    Conductor { ks: Reflectance, alpha: f32 },
+    /// Glass (`illum 6`): relative IOR `eta`, transmission tint `tf`, roughness `alpha`.
+    Dielectric { eta: f32, tf: Rgb, alpha: f32 },
+}
+
+/// A material: how it scatters and what it emits (`Ke`, one-sided, toward the side the shading
+/// normal points to; FORMAT.md §5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    pub surface: Surface,
+    pub emission: Rgb,
+}
+
+impl Material {
+    /// A black, non-emissive diffuse material.
+    pub const BLACK: Self = Self {
+        surface: Surface::Diffuse {
+            kd: Reflectance::constant(Rgb::ZERO),
+        },
+        emission: Rgb::ZERO,
+    };
+
+    #[must_use]
+    pub fn diffuse(kd: Rgb) -> Self {
+        Self::new(Surface::Diffuse {
+            kd: Reflectance::constant(kd),
+        })
+    }
+
+    #[must_use]
+    pub fn phong(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
+        Self::new(Surface::Phong(PhongParams::constant(kd, ks, exponent)))
+    }
+
+    #[must_use]
+    pub fn mixture(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
+        Self::new(Surface::Mixture(PhongParams::constant(kd, ks, exponent)))
+    }
+
+    #[must_use]
+    pub fn conductor(ks: Rgb, alpha: f32) -> Self {
+        Self::new(Surface::Conductor {
+            ks: Reflectance::constant(ks),
+            alpha,
+        })
+    }
+
+    #[must_use]
+    pub fn dielectric(eta: f32, tf: Rgb, alpha: f32) -> Self {
+        Self::new(Surface::Dielectric { eta, tf, alpha })
+    }
+
+    /// A non-emissive material with this surface.
+    #[must_use]
+    pub const fn new(surface: Surface) -> Self {
+        Self {
+            surface,
+            emission: Rgb::ZERO,
+        }
+    }
+
+    #[must_use]
+    pub fn with_emission(self, emission: Rgb) -> Self {
+        Self { emission, ..self }
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn is_emissive(&self) -> bool {
+        self.emission != Rgb::ZERO
+    }
+
+    /// The texture ids the material reads ([`NO_TEXTURE`] where a parameter is constant).
+    #[inline]
+    #[must_use]
+    pub fn texture_ids(&self) -> [u32; 2] {
+        match self.surface {
+            Surface::Diffuse { kd } => [kd.texture, NO_TEXTURE],
+            Surface::Phong(p) | Surface::Mixture(p) => [p.kd.texture, p.ks.texture],
+            Surface::Conductor { ks, .. } => [ks.texture, NO_TEXTURE],
+            Surface::Dielectric { .. } => [NO_TEXTURE; 2],
+        }
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn is_textured(&self) -> bool {
+        self.texture_ids() != [NO_TEXTURE; 2]
+    }
+
+    /// The BSDF at a surface point; `uv` (the point's texture coordinates) is called only for
+    /// a textured material, once.
+    #[inline]
+    #[must_use]
+    pub fn bsdf(&self, textures: &Textures<'_>, uv: impl FnOnce() -> Vec2) -> Bsdf {
+        let uv = if self.is_textured() { uv() } else { Vec2::ZERO };
+        match self.surface {
+            Surface::Diffuse { kd } => Bsdf::Diffuse(Diffuse::new(kd.at(textures, uv))),
+            Surface::Phong(p) => Bsdf::Phong(p.at(textures, uv)),
+            Surface::Mixture(p) => Bsdf::Mixture(p.at(textures, uv)),
+            Surface::Conductor { ks, alpha } => {
+                Bsdf::Conductor(Conductor::new(ks.at(textures, uv), alpha))
+            }
+            Surface::Dielectric { eta, tf, alpha } => {
+                Bsdf::Dielectric(Dielectric::new(eta, tf, alpha))
+            }
+        }
+    }
+
+    /// The BSDF of a material without textures (tests, tools).
+    #[must_use]
+    pub fn constant_bsdf(&self) -> Bsdf {
+        self.bsdf(&Textures::NONE, || Vec2::ZERO)
+    }
+}
+
+impl PhongParams {
+    /// Constant reflectances: the clamp and weight as [`Phong::new`] computes them.
+    #[must_use]
+    pub fn constant(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
+        let p = Phong::new(kd, ks, exponent);
+        Self {
+            kd: Reflectance::constant(kd),
+            ks: Reflectance::constant(ks),
+            exponent: p.exponent,
+            scale: p.scale,
+            specular_weight: p.specular_weight,
+        }
+    }
+
+    #[inline]
+    fn at(&self, textures: &Textures<'_>, uv: Vec2) -> Phong {
+        Phong::with_weights(
+            self.kd.at(textures, uv),
+            self.ks.at(textures, uv),
+            self.exponent,
+            self.scale,
+            self.specular_weight,
+        )
+    }
+}
