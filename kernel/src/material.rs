@@ -40,14 +40,29 @@ impl Reflectance {
     pub const fn is_textured(&self) -> bool {
         self.texture != NO_TEXTURE
     }
+}
+
+/// Texture coordinates computed on first use (only textured parameters need them).
+struct Lazy<F> {
+    f: Option<F>,
+    v: Vec2,
+}
+
+impl<F: FnOnce() -> Vec2> Lazy<F> {
+    #[inline]
+    fn new(f: F) -> Self {
+        Self {
+            f: Some(f),
+            v: Vec2::ZERO,
+        }
+    }
 
     #[inline]
-    fn at(&self, textures: &Textures<'_>, uv: Vec2) -> Rgb {
-        if self.is_textured() {
-            textures.lookup(self.texture, uv)
-        } else {
-            self.value
+    fn get(&mut self) -> Vec2 {
+        if let Some(f) = self.f.take() {
+            self.v = f();
         }
+        self.v
     }
 }
 
@@ -167,14 +182,19 @@ impl Material {
     #[inline]
     #[must_use]
     pub fn bsdf(&self, textures: &Textures<'_>, uv: impl FnOnce() -> Vec2) -> Bsdf {
-        let uv = if self.is_textured() { uv() } else { Vec2::ZERO };
-        match self.surface {
-            Surface::Diffuse { kd } => Bsdf::Diffuse(Diffuse::new(kd.at(textures, uv))),
-            Surface::Phong(p) => Bsdf::Phong(p.at(textures, uv)),
-            Surface::Mixture(p) => Bsdf::Mixture(p.at(textures, uv)),
-            Surface::Conductor { ks, alpha } => {
-                Bsdf::Conductor(Conductor::new(ks.at(textures, uv), alpha))
+        let mut uv = Lazy::new(uv);
+        let mut at = |r: Reflectance| {
+            if r.is_textured() {
+                textures.lookup(r.texture, uv.get())
+            } else {
+                r.value
             }
+        };
+        match self.surface {
+            Surface::Diffuse { kd } => Bsdf::Diffuse(Diffuse::new(at(kd))),
+            Surface::Phong(p) => Bsdf::Phong(p.at(&mut at)),
+            Surface::Mixture(p) => Bsdf::Mixture(p.at(&mut at)),
+            Surface::Conductor { ks, alpha } => Bsdf::Conductor(Conductor::new(at(ks), alpha)),
             Surface::Dielectric { eta, tf, alpha } => {
                 Bsdf::Dielectric(Dielectric::new(eta, tf, alpha))
             }
@@ -203,10 +223,10 @@ impl PhongParams {
     }
 
     #[inline]
-    fn at(&self, textures: &Textures<'_>, uv: Vec2) -> Phong {
+    fn at(&self, reflectance: &mut impl FnMut(Reflectance) -> Rgb) -> Phong {
         Phong::with_weights(
-            self.kd.at(textures, uv),
-            self.ks.at(textures, uv),
+            reflectance(self.kd),
+            reflectance(self.ks),
             self.exponent,
             self.scale,
             self.specular_weight,

@@ -37,7 +37,7 @@ pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use phong::Phong;
-pub use surface::{Scatter, SurfaceBsdf};
+pub use surface::{BsdfView, Scatter, SurfaceBsdf};
 
 use crate::math::SolidAnglePdf;
 use crate::Rgb;

@@ -69,22 +69,67 @@ impl SurfaceBsdf {
         w.dot(self.frame.n).abs()
     }
 
-    /// Whether the geometric and the shading normal agree on the sides of `wo` and `wi`.
+    /// The BSDF seen from the world direction `wo`: `wo` converted once for several queries
+    /// (a path vertex evaluates, weights and samples with the same `wo`).
     #[inline]
-    fn sides_agree(&self, wo: Vec3, wo_l: Vec3, wi: Vec3, wi_l: Vec3) -> bool {
-        let geometric = wo.dot(self.ng) * wi.dot(self.ng);
-        let shading = wo_l.z * wi_l.z;
-        geometric != 0.0 && shading != 0.0 && (geometric > 0.0) == (shading > 0.0)
+    #[must_use]
+    pub fn seen_from(&self, wo: Vec3) -> BsdfView<'_> {
+        BsdfView {
+            surface: self,
+            wo,
+            wo_l: self.frame.to_local(wo),
+            wo_ng: wo.dot(self.ng),
+        }
+    }
+
+    /// The BSDF value for world directions `wo`, `wi` (0 for delta lobes).
+    #[inline]
+    #[must_use]
+    pub fn eval(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Rgb {
+        self.seen_from(wo).eval(wi, mode)
+    }
+
+    /// The solid-angle density with which [`Self::sample`] returns `wi` (0 for delta lobes).
+    #[inline]
+    #[must_use]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> SolidAnglePdf {
+        self.seen_from(wo).pdf(wi, mode)
+    }
+
+    /// Samples the direction of the next vertex for world direction `wo` ([`Bsdf::sample`]).
+    #[inline]
+    #[must_use]
+    pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2, mode: TransportMode) -> Option<Scatter> {
+        self.seen_from(wo).sample(uc, u, mode)
+    }
+}
+
+/// A [`SurfaceBsdf`] with its outgoing direction fixed ([`SurfaceBsdf::seen_from`]).
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfView<'a> {
+    pub surface: &'a SurfaceBsdf,
+    /// The world direction toward the viewer / previous vertex.
+    pub wo: Vec3,
+    wo_l: Vec3,
+    wo_ng: f32,
+}
+
+impl BsdfView<'_> {
+    /// Whether the geometric and the shading normal agree on the sides of `wo` and `wi`
+    /// (false also where either is on the horizon or a product underflows).
+    #[inline]
+    fn sides_agree(&self, wi_ng: f32, wi_l: Vec3) -> bool {
+        (self.wo_ng * wi_ng) * (self.wo_l.z * wi_l.z) > 0.0
     }
 
     /// The adjoint shading-normal factor (1 in radiance transport).
     #[inline]
-    fn correction(&self, mode: TransportMode, wo: Vec3, wo_l: Vec3, wi: Vec3, wi_l: Vec3) -> f32 {
+    fn correction(&self, mode: TransportMode, wi_ng: f32, wi_l: Vec3) -> f32 {
         match mode {
             TransportMode::Radiance => 1.0,
             TransportMode::Importance => {
-                let num = wo_l.z.abs() * wi.dot(self.ng).abs();
-                let den = wo.dot(self.ng).abs() * wi_l.z.abs();
+                let num = self.wo_l.z.abs() * wi_ng.abs();
+                let den = self.wo_ng.abs() * wi_l.z.abs();
                 if den > 0.0 {
                     num / den
                 } else {
@@ -94,41 +139,69 @@ impl SurfaceBsdf {
         }
     }
 
-    /// The BSDF value for world directions `wo`, `wi` (0 for delta lobes).
+    /// `|w·n_s|`, the cosine of a world direction with the shading normal.
     #[inline]
     #[must_use]
-    pub fn eval(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Rgb {
-        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
-        if !self.sides_agree(wo, wo_l, wi, wi_l) {
+    pub fn abs_cos(&self, w: Vec3) -> f32 {
+        self.surface.abs_cos(w)
+    }
+
+    #[inline]
+    #[must_use]
+    pub fn flags(&self) -> BsdfFlags {
+        self.surface.flags()
+    }
+
+    /// The BSDF value toward world direction `wi` (0 for delta lobes).
+    #[inline]
+    #[must_use]
+    pub fn eval(&self, wi: Vec3, mode: TransportMode) -> Rgb {
+        let (wi_l, wi_ng) = (self.surface.frame.to_local(wi), wi.dot(self.surface.ng));
+        if !self.sides_agree(wi_ng, wi_l) {
             return Rgb::ZERO;
         }
-        self.bsdf.eval(wo_l, wi_l, mode) * self.correction(mode, wo, wo_l, wi, wi_l)
+        self.surface.bsdf.eval(self.wo_l, wi_l, mode) * self.correction(mode, wi_ng, wi_l)
+    }
+
+    /// [`Self::eval`] and [`Self::pdf`] together, sharing the frame conversion (Mitsuba's
+    /// `eval_pdf`): what next-event estimation with MIS needs.
+    #[inline]
+    #[must_use]
+    pub fn eval_pdf(&self, wi: Vec3, mode: TransportMode) -> (Rgb, SolidAnglePdf) {
+        let (wi_l, wi_ng) = (self.surface.frame.to_local(wi), wi.dot(self.surface.ng));
+        if !self.sides_agree(wi_ng, wi_l) {
+            return (Rgb::ZERO, SolidAnglePdf(0.0));
+        }
+        let b = &self.surface.bsdf;
+        let f = b.eval(self.wo_l, wi_l, mode) * self.correction(mode, wi_ng, wi_l);
+        (f, b.pdf(self.wo_l, wi_l, mode))
     }
 
     /// The solid-angle density with which [`Self::sample`] returns `wi` (0 for delta lobes).
     #[inline]
     #[must_use]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> SolidAnglePdf {
-        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
-        if !self.sides_agree(wo, wo_l, wi, wi_l) {
+    pub fn pdf(&self, wi: Vec3, mode: TransportMode) -> SolidAnglePdf {
+        let (wi_l, wi_ng) = (self.surface.frame.to_local(wi), wi.dot(self.surface.ng));
+        if !self.sides_agree(wi_ng, wi_l) {
             return SolidAnglePdf(0.0);
         }
-        self.bsdf.pdf(wo_l, wi_l, mode)
+        self.surface.bsdf.pdf(self.wo_l, wi_l, mode)
     }
 
-    /// Samples the direction of the next vertex for world direction `wo` ([`Bsdf::sample`]).
+    /// Samples the direction of the next vertex ([`Bsdf::sample`]).
     #[inline]
     #[must_use]
-    pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2, mode: TransportMode) -> Option<Scatter> {
-        let wo_l = self.frame.to_local(wo);
-        let s = self.bsdf.sample(wo_l, uc, u, mode)?;
-        let wi = self.frame.to_world(s.wi);
-        if !self.sides_agree(wo, wo_l, wi, s.wi) {
+    pub fn sample(&self, uc: f32, u: Vec2, mode: TransportMode) -> Option<Scatter> {
+        let s = self.surface.bsdf.sample(self.wo_l, uc, u, mode)?;
+        let wi = self.surface.frame.to_world(s.wi);
+        let wi_ng = wi.dot(self.surface.ng);
+        if !self.sides_agree(wi_ng, s.wi) {
             return None;
         }
-        let f = s.f * self.correction(mode, wo, wo_l, wi, s.wi);
+        let f = s.f * self.correction(mode, wi_ng, s.wi);
         let weight = f * (s.wi.z.abs() / s.pdf.0);
-        if f == Rgb::ZERO || !crate::math::is_finite(weight) {
+        // The correction or the cosine over the pdf can still overflow or vanish.
+        if !crate::math::is_finite(weight) || weight == Rgb::ZERO {
             return None;
         }
         Some(Scatter {

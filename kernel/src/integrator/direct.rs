@@ -1,6 +1,6 @@
 //! Next-event estimation: direct light from a point sampled on the emitters.
 
-use crate::bsdf::{SurfaceBsdf, TransportMode};
+use crate::bsdf::{BsdfView, TransportMode};
 use crate::emitter::sample_emitter;
 use crate::geometry::spawn_ray_to;
 use crate::math::SolidAnglePdf;
@@ -18,19 +18,24 @@ pub struct DirectSample {
     pub wi: Vec3,
     /// Density of `wi` under emitter sampling, per unit solid angle.
     pub pdf: SolidAnglePdf,
+    /// Density of `wi` under BSDF sampling (for MIS weights; 0 when not asked for).
+    pub pdf_bsdf: SolidAnglePdf,
 }
 
-/// Samples a point on the emitters and returns its unweighted contribution, or `None` when the
-/// point is occluded, faces away, or the BSDF is zero for it (delta lobes, the wrong side). The
-/// shadow ray, when one is traced, is reported to `sampler` ([`Sampler::count_ray`]); no
-/// numbers are drawn from it.
+/// Samples a point on the emitters for the surface point `si` with its BSDF seen from `si.wo`
+/// and returns its unweighted contribution, or `None` when the
+/// point is occluded, faces away, or the BSDF is zero for it (delta lobes, the wrong side).
+/// `pdf_bsdf` is computed only when `with_bsdf_pdf` (MIS needs it; next-event estimation
+/// alone does not). The shadow ray, when one is traced, is reported to `sampler`
+/// ([`Sampler::count_ray`]); no numbers are drawn from it.
 #[inline]
 pub fn sample_direct<S: Sampler>(
     scene: &SceneView<'_>,
     si: &SurfaceInteraction,
-    bsdf: &SurfaceBsdf,
+    bsdf: &BsdfView<'_>,
     u_select: f32,
     u_light: Vec2,
+    with_bsdf_pdf: bool,
     sampler: &mut S,
 ) -> Option<DirectSample> {
     let es = sample_emitter(scene, u_select, u_light)?;
@@ -44,7 +49,12 @@ pub fn sample_direct<S: Sampler>(
     if cos_light <= 0.0 {
         return None;
     }
-    let f = bsdf.eval(si.wo, wi, TransportMode::Radiance);
+    let (f, pdf_bsdf) = if with_bsdf_pdf {
+        bsdf.eval_pdf(wi, TransportMode::Radiance)
+    } else {
+        let f = bsdf.eval(wi, TransportMode::Radiance);
+        (f, SolidAnglePdf(0.0))
+    };
     if f == Rgb::ZERO {
         return None;
     }
@@ -58,5 +68,6 @@ pub fn sample_direct<S: Sampler>(
         contribution: f * es.radiance * (bsdf.abs_cos(wi) / pdf.0),
         wi,
         pdf,
+        pdf_bsdf,
     })
 }

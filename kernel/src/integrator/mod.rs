@@ -230,7 +230,13 @@ pub fn li<S: Sampler>(
     settings: &PathSettings,
     sampler: &mut S,
 ) -> Rgb {
-    li_path(scene, ray, settings, &integrator.strategy(), sampler)
+    // One call per strategy, so that each path tracer is compiled with its strategy known
+    // (the loop is inlined at each call and the branches on the strategy fold away).
+    match integrator {
+        Integrator::PathImplicit => li_path(scene, ray, settings, &PathStrategy::IMPLICIT, sampler),
+        Integrator::PathExplicit => li_path(scene, ray, settings, &PathStrategy::EXPLICIT, sampler),
+        Integrator::PathMis => li_path(scene, ray, settings, &PathStrategy::MIS, sampler),
+    }
 }
 
 /// Sums of the samples of one pixel: enough for the mean and the sample variance.

@@ -75,7 +75,7 @@ pub fn power_heuristic(a: SolidAnglePdf, b: SolidAnglePdf) -> f32 {
 }
 
 /// Radiance arriving along `ray` (emission seen directly plus scattered light).
-#[inline]
+#[inline(always)]
 pub fn li_path<S: Sampler>(
     scene: &SceneView<'_>,
     ray: &Ray,
@@ -94,8 +94,9 @@ pub fn li_path<S: Sampler>(
 
 /// Radiance scattered at `si` toward `si.wo` (its own emission excluded), with `bsdf` at `si`
 /// as the first scattering vertex and the scene's materials further on. Per bounce the
-/// sampler's dimensions are laid out as [`dims`] says.
-#[inline]
+/// sampler's dimensions are laid out as [`dims`] says. Always inlined, so that a caller that
+/// passes a constant strategy gets a loop specialised for it.
+#[inline(always)]
 pub fn li_path_from_surface<S: Sampler>(
     scene: &SceneView<'_>,
     mut si: SurfaceInteraction,
@@ -115,14 +116,16 @@ pub fn li_path_from_surface<S: Sampler>(
         if !settings.allows(bounces) {
             break;
         }
-        let u = dims::Bounce::draw(sampler);
+        let view = bsdf.seen_from(si.wo);
         let flags = bsdf.flags();
         let next_event = strategy.direct != DirectLighting::BsdfSampling && flags.is_non_specular();
+        let u = dims::Bounce::draw(sampler);
         if next_event {
-            if let Some(d) = sample_direct(scene, &si, &bsdf, u.light_select, u.light, sampler) {
-                let w = if strategy.direct == DirectLighting::Mis {
-                    let pdf_bsdf = bsdf.pdf(si.wo, d.wi, TransportMode::Radiance);
-                    power_heuristic(d.pdf, pdf_bsdf)
+            let mis = strategy.direct == DirectLighting::Mis;
+            let (u_select, u_light) = (u.light_select, u.light);
+            if let Some(d) = sample_direct(scene, &si, &view, u_select, u_light, mis, sampler) {
+                let w = if mis {
+                    power_heuristic(d.pdf, d.pdf_bsdf)
                 } else {
                     1.0
                 };
@@ -138,7 +141,7 @@ pub fn li_path_from_surface<S: Sampler>(
         {
             break;
         }
-        let Some(s) = bsdf.sample(si.wo, u.lobe, u.direction, TransportMode::Radiance) else {
+        let Some(s) = view.sample(u.lobe, u.direction, TransportMode::Radiance) else {
             break;
         };
         // Emission found by the sampled ray counts unless next-event estimation has it.
