@@ -1,5 +1,7 @@
-//! Hashes the sources that determine a GI bake (the kernel and the baker) into
-//! `EMBER_BAKE_CODE_HASH`, so a stored bake made by other code is never reused.
+//! Hashes the sources that turn scene data into a GI bake (the kernel and the baker) into
+//! `EMBER_BAKE_CODE_HASH`, so a stored bake made by other code is never reused. The scene data
+//! itself (whatever the loader made of the files) is hashed at run time (`bake::provenance`),
+//! so the loader's sources need not be part of this hash.
 
 use std::path::Path;
 

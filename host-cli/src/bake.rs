@@ -214,7 +214,68 @@ pub fn provenance(scene: &LoadedScene, s: &BakeSettings) -> Vec<(String, String)
         // A hash of the kernel's and the baker's sources (build.rs): a bake made by other
         // code is never reused.
         ("code".into(), env!("EMBER_BAKE_CODE_HASH").into()),
+        // A hash of the scene data the kernel reads: whatever changed it (an edited OBJ, MTL
+        // or texture, a change to how the loader maps MTL keys to materials) bakes again.
+        ("scene_data".into(), format!("{:016x}", scene_data_hash(&scene.data.view()))),
     ]
+}
+
+/// FNV-1a (64-bit) over everything in a kernel scene view that a bake can depend on:
+/// geometry, texture coordinates, materials (their parameters, written out by `Debug`, which
+/// prints every float exactly), emitter table, BVH order, textures and texels.
+#[must_use]
+pub fn scene_data_hash(v: &ember_kernel::scene::SceneView<'_>) -> u64 {
+    struct Fnv(u64);
+    impl Fnv {
+        fn bytes(&mut self, b: &[u8]) {
+            for &x in b {
+                self.0 ^= u64::from(x);
+                self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+        fn floats(&mut self, f: impl IntoIterator<Item = f32>) {
+            for x in f {
+                self.bytes(&x.to_bits().to_le_bytes());
+            }
+        }
+        fn words(&mut self, w: impl IntoIterator<Item = u32>) {
+            for x in w {
+                self.bytes(&x.to_le_bytes());
+            }
+        }
+        /// A length first, so that adjacent slices cannot trade elements.
+        fn len(&mut self, n: usize) {
+            self.bytes(&(n as u64).to_le_bytes());
+        }
+    }
+    let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+    h.len(v.positions.len());
+    h.floats(v.positions.iter().flat_map(|p| p.to_array()));
+    h.len(v.normals.len());
+    h.floats(v.normals.iter().flat_map(|n| n.to_array()));
+    h.len(v.triangles.len());
+    h.words(v.triangles.iter().flatten().copied());
+    h.len(v.triangle_materials.len());
+    h.words(v.triangle_materials.iter().copied());
+    h.len(v.materials.len());
+    for m in v.materials {
+        h.bytes(format!("{m:?}").as_bytes());
+    }
+    h.len(v.emitter_triangles.len());
+    h.words(v.emitter_triangles.iter().copied());
+    h.floats(v.emitter_cdf.iter().copied());
+    h.len(v.bvh.prim_order().len());
+    h.words(v.bvh.prim_order().iter().copied());
+    let t = &v.textures;
+    h.len(t.uvs.len());
+    h.floats(t.uvs.iter().flat_map(|uv| uv.to_array()));
+    h.len(t.textures.len());
+    for tex in t.textures {
+        h.bytes(format!("{tex:?}").as_bytes());
+    }
+    h.len(t.texels.len());
+    h.floats(t.texels.iter().flat_map(|c| c.to_array()));
+    h.0
 }
 
 /// Where a scene's bake is stored by default: `<toml stem>.bake.ply` beside the TOML.
@@ -223,13 +284,11 @@ pub fn default_bake_path(toml: &Path) -> PathBuf {
     toml.with_extension("bake.ply")
 }
 
-fn modified(p: &Path) -> Option<std::time::SystemTime> {
-    std::fs::metadata(p).and_then(|m| m.modified()).ok()
-}
-
-/// Reads the bake at `path` when it is newer than the scene's TOML, OBJ and MTL files and was
-/// made with the same settings; otherwise bakes and stores it there (a store that fails, e.g.
-/// in a read-only folder, is reported as a warning and the bake is still returned).
+/// Reads the bake at `path` when it was made from the same scene data with the same settings
+/// and code ([`provenance`]); otherwise bakes and stores it there (a store that fails, e.g.
+/// in a read-only folder, is reported as a warning and the bake is still returned). File
+/// times play no part: an edited texture, a copied scene or a changed loader are all seen in
+/// the data the kernel reads.
 ///
 /// # Errors
 /// When baking fails.
@@ -238,21 +297,11 @@ pub fn load_or_bake(
     path: &Path,
     s: &BakeSettings,
 ) -> Result<(BakedMesh, Option<BakeReport>)> {
-    let inputs = [&scene.file.path, &scene.file.objfile];
-    let newest_input = inputs
-        .iter()
-        .filter_map(|p| modified(p))
-        .chain(scene.data.mtl_files.iter().filter_map(|p| modified(p)))
-        .max();
-    if let (Some(bake_time), Some(input_time)) = (modified(path), newest_input) {
-        if bake_time > input_time {
-            if let Ok(mesh) = read_ply(path) {
-                if mesh.provenance == provenance(scene, s)
-                    && mesh.positions.len() == scene.data.positions.len()
-                {
-                    return Ok((mesh, None));
-                }
-            }
+    if let Ok(mesh) = read_ply(path) {
+        if mesh.provenance == provenance(scene, s)
+            && mesh.positions.len() == scene.data.positions.len()
+        {
+            return Ok((mesh, None));
         }
     }
     let (mesh, report) = bake(scene, s)?;
@@ -377,4 +426,53 @@ pub fn read_ply(path: &Path) -> Result<BakedMesh> {
         mesh.triangles.push(t);
     }
     Ok(mesh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ember_kernel::material::{Material, Surface};
+    use ember_kernel::Rgb;
+
+    fn settings() -> BakeSettings {
+        BakeSettings {
+            path: PathSettings::default(),
+            samples_per_vertex: 4,
+            seed: 1,
+            threads: 1,
+            progress: false,
+            vertex_inset: BAKE_INSET,
+            estimator: BakeEstimator::Mis,
+        }
+    }
+
+    /// A stored bake is keyed by the scene data the kernel reads, so whatever changes that
+    /// data invalidates it: a different material (here the same Kd mapped to another BSDF,
+    /// as a change to the MTL mapping code would do), a changed reflectance, changed texels.
+    #[test]
+    fn provenance_changes_with_the_scene_data() {
+        let toml = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../data/furnace/furnace_a050_explicit.toml");
+        let mut scene = LoadedScene::load(&toml).unwrap();
+        let s = settings();
+        let base = provenance(&scene, &s);
+        assert_eq!(base, provenance(&scene, &s), "deterministic");
+        let original = scene.data.materials[0];
+        let Surface::Diffuse { kd } = original.surface else {
+            panic!("the furnace is diffuse")
+        };
+        // The loader mapping the same MTL entry to the mixture instead.
+        scene.data.materials[0] = Material::mixture(kd.value, Rgb::ZERO, 1.0)
+            .with_emission(original.emission);
+        assert_ne!(base, provenance(&scene, &s), "another BSDF for the same MTL");
+        // A changed reflectance in the MTL.
+        scene.data.materials[0] =
+            Material::diffuse(kd.value * 0.999).with_emission(original.emission);
+        assert_ne!(base, provenance(&scene, &s), "another Kd");
+        scene.data.materials[0] = original;
+        assert_eq!(base, provenance(&scene, &s));
+        // Geometry.
+        scene.data.positions[0].x += 1e-6;
+        assert_ne!(base, provenance(&scene, &s), "a moved vertex");
+    }
 }

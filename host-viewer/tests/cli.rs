@@ -91,6 +91,16 @@ fn headless_writes_exr_and_png_beside_the_scene_and_reuses_the_bake() {
     let o = ember_view(&[t, "--headless", "-q"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("reusing the bake"), "{}", stderr(&o));
+    // An edited material is a different scene: the stored bake is not reused (its file time
+    // plays no part; the data the kernel reads is hashed).
+    std::fs::write(
+        dir.join("grey.mtl"),
+        "newmtl furnace\nKd 0.4 0.5 0.5\nKs 0 0 0\nKe 0.1 0.1 0.1\nillum 7\n",
+    )
+    .unwrap();
+    let o = ember_view(&[t, "--headless", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("baked "), "{}", stderr(&o));
     let out = dir.join("other.exr");
     let bake = dir.join("other.ply");
     let o = ember_view(&[
