@@ -66,6 +66,22 @@ fn mesh_case(case: &str, obj: &str, mtl: &str, file: &str, phrases: &[&str]) {
     assert_bad_input(case, &out, &dir, file, phrases);
 }
 
+/// A mesh case whose whole error line is checked: `expected` is the line after `error: `,
+/// with `<dir>` standing for the case directory.
+#[track_caller]
+fn mesh_case_exact(case: &str, obj: &str, mtl: &str, files: &[(&str, &[u8])], expected: &str) {
+    let (dir, scene) = scene_dir(case, SCENE_TOML, obj, mtl);
+    for (name, bytes) in files {
+        std::fs::write(dir.path().join(name), bytes).expect("cannot write test input");
+    }
+    let out = render(&scene, &[]);
+    let expected = expected.replace("<dir>", &dir.path().display().to_string());
+    let file = expected.split(": ").next().expect("a file name");
+    assert_bad_input(case, &out, &dir, file, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.trim(), format!("error: {expected}"), "case {case}");
+}
+
 /// `toml` without the table `[name]` (its header and keys).
 fn without_table(toml: &str, name: &str) -> String {
     let header = format!("[{name}]");
@@ -652,6 +668,58 @@ fn mtl_negative_ns() {
             "material 'light'",
             "Ns = -3 must be finite and >= 0",
         ],
+    );
+}
+
+#[test]
+fn mtl_bad_ior() {
+    let mtl = edit(QUAD_MTL, "illum 7", "Ni 0\nillum 6");
+    mesh_case_exact(
+        "MTL with Ni 0",
+        QUAD_OBJ,
+        &mtl,
+        &[],
+        "<dir>/quad.mtl: line 4: material 'light': Ni = 0 must be finite and > 0 (the index of refraction relative to air)",
+    );
+    let mtl = edit(QUAD_MTL, "illum 7", "Ni 1.5 1.3\nillum 6");
+    mesh_case_exact(
+        "MTL with two Ni values",
+        QUAD_OBJ,
+        &mtl,
+        &[],
+        "<dir>/quad.mtl: line 4: material 'light': Ni must be one number, found '1.5 1.3'",
+    );
+}
+
+#[test]
+fn mtl_bad_roughness() {
+    let mtl = edit(QUAD_MTL, "illum 7", "Pr 2\nillum 5");
+    mesh_case_exact(
+        "MTL with Pr 2",
+        QUAD_OBJ,
+        &mtl,
+        &[],
+        "<dir>/quad.mtl: line 4: material 'light': Pr = 2 must be a roughness in [0, 1]",
+    );
+}
+
+#[test]
+fn mtl_bad_transmission_filter() {
+    let mtl = edit(QUAD_MTL, "illum 7", "Tf 1 -0.5 1\nillum 6");
+    mesh_case_exact(
+        "MTL with a negative Tf",
+        QUAD_OBJ,
+        &mtl,
+        &[],
+        "<dir>/quad.mtl: line 4: material 'light': Tf = [1, -0.5, 1] must be finite and non-negative",
+    );
+    let mtl = edit(QUAD_MTL, "illum 7", "Tf spectral glass.rfl 1\nillum 6");
+    mesh_case_exact(
+        "MTL with Tf spectral",
+        QUAD_OBJ,
+        &mtl,
+        &[],
+        "<dir>/quad.mtl: line 4: material 'light': Tf spectral (a spectral curve file) is not supported; give the transmission filter as Tf r g b",
     );
 }
 
