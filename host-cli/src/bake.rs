@@ -216,7 +216,10 @@ pub fn provenance(scene: &LoadedScene, s: &BakeSettings) -> Vec<(String, String)
         ("code".into(), env!("EMBER_BAKE_CODE_HASH").into()),
         // A hash of the scene data the kernel reads: whatever changed it (an edited OBJ, MTL
         // or texture, a change to how the loader maps MTL keys to materials) bakes again.
-        ("scene_data".into(), format!("{:016x}", scene_data_hash(&scene.data.view()))),
+        (
+            "scene_data".into(),
+            format!("{:016x}", scene_data_hash(&scene.data.view())),
+        ),
     ]
 }
 
@@ -462,9 +465,13 @@ mod tests {
             panic!("the furnace is diffuse")
         };
         // The loader mapping the same MTL entry to the mixture instead.
-        scene.data.materials[0] = Material::mixture(kd.value, Rgb::ZERO, 1.0)
-            .with_emission(original.emission);
-        assert_ne!(base, provenance(&scene, &s), "another BSDF for the same MTL");
+        scene.data.materials[0] =
+            Material::mixture(kd.value, Rgb::ZERO, 1.0).with_emission(original.emission);
+        assert_ne!(
+            base,
+            provenance(&scene, &s),
+            "another BSDF for the same MTL"
+        );
         // A changed reflectance in the MTL.
         scene.data.materials[0] =
             Material::diffuse(kd.value * 0.999).with_emission(original.emission);

@@ -116,3 +116,65 @@ fn every_path_scene_renders_finite_values() {
         );
     }
 }
+
+/// A smooth glass sphere (Ni 1.5, flat-shaded facets) inside the black furnace whose walls
+/// emit 1 is invisible: Fresnel-chosen delta reflection and refraction carry throughput exactly
+/// 1 over a closed object (1/η² entering, η² leaving, in radiance transport), so every camera
+/// path ends on a wall with value 1. Without Russian roulette (rrDepth beyond the bounce cap)
+/// every pixel of every integrator is 1 up to rounding; a pixel off by 1e-4 means a lobe's
+/// weight, the η² bookkeeping, a ray offset or a side test is wrong. With roulette from the
+/// first bounce, MIS (whose adaptive roulette divides by η′² to see the path's true
+/// throughput, as pbrt's etaScale) still averages 1.
+#[test]
+fn glass_furnace_is_invisible_with_every_integrator() {
+    let toml = project_data("furnace/furnace_glass.toml");
+    let scene = ember_cli::LoadedScene::load(&toml).unwrap();
+    let (_, path, _) = scene.path_settings().unwrap();
+    let camera = scene.camera(32, 32);
+    let render = |integrator, path, spp| {
+        ember_cli::render::render(
+            &scene.data.view(),
+            &camera,
+            &ember_cli::render::RenderSettings {
+                integrator,
+                path,
+                spp,
+                seed: ember_kernel::sampler::DEFAULT_SEED,
+                tile: 16,
+                threads: 0,
+                progress: false,
+                shard: ember_cli::render::Shard::WHOLE,
+            },
+        )
+    };
+    for integrator in [
+        Integrator::PathImplicit,
+        Integrator::PathExplicit,
+        Integrator::PathMis,
+    ] {
+        let r = render(integrator, path, 16);
+        assert_eq!(r.invalid_samples, 0);
+        let worst = r
+            .image
+            .pixels
+            .iter()
+            .map(|p| (*p - ember_kernel::Rgb::ONE).abs().max_element())
+            .fold(0.0f32, f32::max);
+        println!("{integrator:?}: largest |L - 1| over the image {worst:e}");
+        assert!(
+            worst < 1e-4,
+            "{integrator:?}: a pixel is {worst} away from 1"
+        );
+    }
+    // Roulette from the first bounce: unbiased, so the mean stays 1 within its noise.
+    let rr = ember_kernel::integrator::PathSettings {
+        rr_depth: 1,
+        ..path
+    };
+    let r = render(Integrator::PathMis, rr, 64);
+    let mean = r.image.mean().x as f64;
+    let se = (r.variance.mean().x as f64 / (32.0 * 32.0)).sqrt();
+    println!("MIS with roulette from bounce 1: mean {mean:.5} (standard error {se:.5})");
+    assert!(se < 0.005, "too noisy to test: {se}");
+    assert!((mean - 1.0).abs() < 4.0 * se, "mean {mean}");
+}

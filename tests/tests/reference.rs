@@ -157,22 +157,6 @@ fn mean_variance(var: &Image) -> Rgb {
     (var.mean().as_dvec3() / var.pixels.len() as f64).as_vec3()
 }
 
-/// Per-pixel agreement: the ratio Σ(a−b)² / Σ(va+vb) over pixels and channels, and the z of
-/// its numerator minus denominator, normalised by the empirical spread Σ((a−b)² − v)² so that
-/// heavy-tailed (fireflying) estimators do not make it overconfident.
-fn pixel_mse_z(a: &Image, b: &Image, var_sum: impl Fn(usize) -> glam::DVec3) -> (f64, f64) {
-    let (mut sq, mut sv, mut spread) = (0.0f64, 0.0f64, 0.0f64);
-    for i in 0..a.pixels.len() {
-        let d = (a.pixels[i] - b.pixels[i]).as_dvec3();
-        let v = var_sum(i);
-        let e = d * d - v;
-        sq += (d * d).element_sum();
-        sv += v.element_sum();
-        spread += (e * e).element_sum();
-    }
-    (sq / sv, (sq - sv) / spread.sqrt())
-}
-
 #[test]
 #[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
 fn path_scenes_match_the_tinyrender_references() {
