@@ -100,3 +100,104 @@ fn bake_does_not_depend_on_thread_count() {
         .flatten()
         .all(|v| v.is_finite() && *v >= 0.0));
 }
+
+/// What a baked vertex on glass or metal stores: the cosine-weighted average over view
+/// directions of the light it scatters (its radiosity over π; see `bake_vertex`), a
+/// view-independent value. Inside the black furnace whose walls emit 1, a point facing the
+/// walls has closed-form values: a mirror of reflectance `Ks` stores `Ks` exactly (every view
+/// sees a wall), a point on the smooth glass sphere stores 1 (the sphere is invisible: what is
+/// not reflected crosses it, 1/η² in and η² out), a white GGX conductor stores its single-scattering
+/// albedo averaged over views (E_avg of BONUS-NOTES §5: 0.700 at α = 0.5, 0.971 at 0.1), a
+/// diffuse surface its Kd. Every integrator-level rule is exercised: delta lobes (no
+/// next-event estimation, emission counted after the bounce), MIS weights of the rough lobe.
+#[test]
+fn baked_glass_and_metal_store_the_view_average() {
+    use ember_kernel::integrator::{bake_vertex, BakeEstimator, BakePoint};
+    use ember_kernel::material::Material;
+    use ember_kernel::{Rgb, Vec2, Vec3};
+    let mut scene = LoadedScene::load(&project_data("furnace/furnace_glass.toml")).unwrap();
+    let base = scene.data.materials.len() as u32;
+    let cases = [
+        (
+            "mirror Ks 0.8",
+            Material::conductor(Rgb::splat(0.8), 0.0),
+            0.8,
+            0.0,
+        ),
+        (
+            "smooth glass",
+            Material::dielectric(1.5, Rgb::ONE, 0.0),
+            1.0,
+            0.0,
+        ),
+        (
+            "GGX conductor a=0.5",
+            Material::conductor(Rgb::ONE, 0.5),
+            0.700,
+            0.002,
+        ),
+        (
+            "GGX conductor a=0.05",
+            Material::conductor(Rgb::ONE, 0.05),
+            0.9936,
+            0.002,
+        ),
+        (
+            "diffuse Kd 0.5",
+            Material::diffuse(Rgb::splat(0.5)),
+            0.5,
+            0.0,
+        ),
+    ];
+    scene.data.materials.extend(cases.iter().map(|c| c.1));
+    let view = scene.data.view();
+    view.validate().unwrap();
+    // Outside the glass sphere (centre z = -0.35, radius 0.45), facing the +z wall; and the
+    // centroid of the sphere's first facet, with its normal, for the glass.
+    let free = (Vec3::new(0.1, -0.2, 0.6), Vec3::Z);
+    let glass = scene
+        .data
+        .objects
+        .iter()
+        .find(|o| o.name == "glass")
+        .unwrap();
+    let [a, b, c] = view.triangle_vertices(glass.triangles.start);
+    let facet = ((a + b + c) / 3.0, (b - a).cross(c - a).normalize());
+    // No roulette: every path but the GGX ones has an exact value.
+    let path = PathSettings {
+        rr_depth: 2000,
+        ..PathSettings::default()
+    };
+    let samples = 40_000;
+    for (k, &(name, _, expected, reference_error)) in cases.iter().enumerate() {
+        for estimator in [BakeEstimator::Mis, BakeEstimator::Explicit] {
+            let (p, n) = if name == "smooth glass" { facet } else { free };
+            let point = BakePoint {
+                p,
+                n,
+                material: base + k as u32,
+                uv: Vec2::ZERO,
+            };
+            // Independent keys give independent estimates: their spread is the noise.
+            let values: Vec<f64> = (0..8u64)
+                .map(|key| {
+                    let b = bake_vertex(&view, &point, &path, estimator, 7, key, samples / 8);
+                    assert!(b.is_finite() && b.x == b.y && b.y == b.z, "{name}: {b}");
+                    f64::from(b.x)
+                })
+                .collect();
+            let mean = values.iter().sum::<f64>() / 8.0;
+            let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / 7.0;
+            let se = (var / 8.0).sqrt();
+            println!("{name} ({estimator:?}): {mean:.5} ± {se:.5}, expected {expected}");
+            // 5 standard errors (Student t, 7 dof, two-sided 1%: 3.5) plus the reference's
+            // own quadrature error; exact cases must be exact up to the rounding of the f32
+            // sum of 5000 samples (observed 4e-5).
+            let tol = 5.0 * se + reference_error + 1e-4;
+            assert!(
+                (mean - expected).abs() <= tol,
+                "{name} ({estimator:?}): {mean} vs {expected} ± {tol}"
+            );
+        }
+    }
+}
