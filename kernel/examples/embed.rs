@@ -5,7 +5,8 @@
 //!
 //!     cargo run --release -p ember-kernel --example embed
 //!
-//! It prints a small render of a lit room as ASCII art, its mean radiance, and a baked value.
+//! It prints a small render of a lit room with a glossy block and a glass cube as ASCII art,
+//! its mean radiance, and a baked value.
 
 use ember_kernel::bvh::{self, Bvh, BvhNode};
 use ember_kernel::camera::Camera;
@@ -58,9 +59,12 @@ fn main() {
     let blue = Material::diffuse(Rgb::new(0.1, 0.2, 0.6));
     let glossy = Material::mixture(Rgb::splat(0.3), Rgb::splat(0.5), 60.0);
     let light = Material::diffuse(Rgb::ZERO).with_emission(Rgb::new(12.0, 11.0, 9.0));
-    let materials = vec![white, blue, glossy, light];
+    // Smooth glass: relative IOR 1.5, untinted, roughness alpha 0.
+    let glass = Material::dielectric(1.5, Rgb::ONE, 0.0);
+    let materials = vec![white, blue, glossy, light, glass];
 
-    // A room open toward +z with a ceiling light and a glossy block.
+    // A room open toward +z with a ceiling light, a glossy block and a glass cube standing on
+    // the floor (its open bottom is the floor: light refracts into it and out again).
     let mut mesh = Mesh::default();
     let (x, y, z) = (Vec3::X * 2.0, Vec3::Y * 2.0, Vec3::Z * 2.0);
     let c = Vec3::new(-1.0, 0.0, -1.0);
@@ -71,6 +75,7 @@ fn main() {
     mesh.quad(c + x, z, y, 0); // right wall, facing -x
     mesh.quad(Vec3::new(-0.3, 1.99, -0.3), Vec3::X * 0.6, Vec3::Z * 0.6, 3); // light, facing down
     mesh.cuboid(Vec3::new(-0.2, 0.0, -0.5), Vec3::new(0.5, 0.8, 0.2), 2);
+    mesh.cuboid(Vec3::new(-0.8, 0.0, 0.1), Vec3::new(-0.3, 0.5, 0.6), 4);
 
     // The BVH into buffers sized by the kernel; no bounds array needed.
     let mut nodes = vec![BvhNode::default(); bvh::max_nodes(mesh.triangles.len())];

@@ -7,6 +7,11 @@
  * Views of caller-owned arrays; no global state, no allocation; thread-safe for disjoint
  * outputs. Link the static library of a crate that depends on ember-kernel with
  * features = ["capi"] (tests/capi is one: libember_capi.a).
+ *
+ * ABI version EMBER_ABI_VERSION: check  ember_abi_version() == EMBER_ABI_VERSION  before any
+ * other call, and set the first field of every struct you fill, struct_size, to its sizeof
+ * (EmberMaterial, EmberScene, EmberCamera, EmberSettings, EmberBakePoint); a call handed a
+ * struct of another size returns EMBER_ERROR_ABI and reads nothing else of it.
  */
 
 #ifndef EMBER_H
@@ -15,10 +20,17 @@
 #include <stddef.h>
 #include <stdint.h>
 
+// The version of the C API this header describes. Compare it with [`ember_abi_version`] at
+// start-up: they differ when the program was compiled against another ember.h than the
+// library it runs with. Version 2 added `struct_size` as the first field of every struct the
+// caller fills, conductor and dielectric materials, and textures.
+#define EMBER_ABI_VERSION 2
+
 // Success.
 #define EMBER_OK 0
 
-// A required pointer was null (a pointer may be null only when its count is 0).
+// A required pointer was null (a pointer may be null only when its count is 0), or a textured
+// material without texture coordinates.
 #define EMBER_ERROR_NULL_POINTER 1
 
 // A count or capacity is wrong: an output buffer too small, a size that overflows, a
@@ -26,7 +38,8 @@
 #define EMBER_ERROR_SIZE 2
 
 // The scene's arrays are inconsistent: an index out of range, an unsorted emitter table, a
-// BVH that is not a tree over the scene's triangles, a bad material.
+// BVH that is not a tree over the scene's triangles, a bad material, a texture id without a
+// texture, a texture whose texels lie outside the texel array, a bad texel.
 #define EMBER_ERROR_INVALID_SCENE 3
 
 // A camera, settings, tile or bake point value is out of range.
@@ -35,8 +48,16 @@
 // More than [`EMBER_MAX_MATERIALS`] materials.
 #define EMBER_ERROR_TOO_MANY_MATERIALS 5
 
+// A struct's `struct_size` is not its size in this library: the caller was compiled against
+// the header of another ABI version (or did not set the field). Nothing else of it was read.
+#define EMBER_ERROR_ABI 6
+
 // Most materials a scene may have in the rendering calls.
 #define EMBER_MAX_MATERIALS 1024
+
+// A texture id meaning "no texture: use the constant" ([`EmberMaterial::kd_texture`],
+// [`EmberMaterial::ks_texture`]).
+#define EMBER_NO_TEXTURE UINT32_MAX
 
 // [`EmberMaterial::kind`]: Lambertian, `Kd/π` (MTL `illum 7`).
 #define EMBER_MATERIAL_DIFFUSE 0
@@ -47,6 +68,15 @@
 
 // [`EmberMaterial::kind`]: the diffuse + Phong mixture (`illum 8`).
 #define EMBER_MATERIAL_MIXTURE 2
+
+// [`EmberMaterial::kind`]: a metal (`illum 5`) of reflectance `ks` at every angle and GGX
+// roughness `alpha` (0: a perfect mirror).
+#define EMBER_MATERIAL_CONDUCTOR 3
+
+// [`EmberMaterial::kind`]: glass (`illum 6`): relative index of refraction `ior`, exact
+// Fresnel, transmission tinted by `tf`, GGX roughness `alpha` (0: smooth). The outside is the
+// side the shading normal points to.
+#define EMBER_MATERIAL_DIELECTRIC 4
 
 // [`EmberSettings::integrator`]: path tracing with BSDF sampling only.
 #define EMBER_INTEGRATOR_PATH_IMPLICIT 0
@@ -63,22 +93,58 @@
 // [`EmberSettings::bake_estimator`]: next-event estimation only (TinyRender's bake).
 #define EMBER_BAKE_EXPLICIT 1
 
-// A material. Reflectances and emission are linear RGB, finite and non-negative.
+// A material. `kind` says which fields are read (the others are ignored); colours are linear
+// RGB, finite and non-negative.
 typedef struct EmberMaterial {
-  // `EMBER_MATERIAL_DIFFUSE`, `EMBER_MATERIAL_PHONG` or `EMBER_MATERIAL_MIXTURE`.
+  // `sizeof(EmberMaterial)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+  uint32_t struct_size;
+  // `EMBER_MATERIAL_DIFFUSE`, `_PHONG`, `_MIXTURE`, `_CONDUCTOR` or `_DIELECTRIC`.
   uint32_t kind;
-  // Diffuse reflectance `Kd`.
+  // Diffuse reflectance `Kd` (diffuse, Phong, mixture).
   float kd[3];
-  // Specular reflectance `Ks` (ignored by diffuse materials).
+  // `EMBER_NO_TEXTURE` for the constant `kd`, or the id of the texture that replaces it.
+  uint32_t kd_texture;
+  // Specular reflectance `Ks` (Phong, mixture); a conductor's reflectance.
   float ks[3];
-  // Phong exponent `Ns`, finite and >= 0 (ignored by diffuse materials).
+  // `EMBER_NO_TEXTURE` for the constant `ks`, or the id of the texture that replaces it.
+  uint32_t ks_texture;
+  // Phong exponent `Ns`, finite and >= 0 (Phong, mixture).
   float ns;
-  // Emitted radiance `Ke`, one-sided toward the side the shading normal points to.
+  // Emitted radiance `Ke` (every kind), one-sided toward the side the shading normal points
+  // to.
   float ke[3];
+  // Relative index of refraction, inside over outside (MTL `Ni`), finite and > 0
+  // (dielectric).
+  float ior;
+  // Transmission tint `Tf` (dielectric).
+  float tf[3];
+  // Roughness: the Trowbridge–Reitz (GGX) `alpha` itself, not MTL's `Pr` (`alpha = Pr²`),
+  // finite and >= 0; 0 is smooth, a mirror or clear glass (conductor, dielectric).
+  float alpha;
 } EmberMaterial;
+
+// An RGB image texture: `width × height` texels at `texels[first_texel ..]` of the scene's
+// texel array, bottom row first, each row left to right. A surface point reads the nearest
+// texel of `frac(uv · uv_scale + uv_offset)` (the MTL map options `-s` and `-o`; non-finite
+// coordinates read texel 0). Read in place as the kernel's `Texture`, so it has no
+// `struct_size`: its layout changes only with `EMBER_ABI_VERSION`.
+typedef struct EmberTexture {
+  // At least 1.
+  uint32_t width;
+  // At least 1.
+  uint32_t height;
+  // Index of the texture's first texel in the scene's texel array.
+  uint32_t first_texel;
+  // Finite.
+  float uv_scale[2];
+  // Finite.
+  float uv_offset[2];
+} EmberTexture;
 
 // One 32-byte BVH node, as `ember_build_bvh` writes it: the kernel's `BvhNode`, field for
 // field. Nodes are in depth-first order; an interior node's first child is the next node.
+// Written and read in place, so it has no `struct_size`: its layout changes only with
+// `EMBER_ABI_VERSION`.
 typedef struct EmberBvhNode {
   float min[3];
   // Leaf: first index into the BVH's triangle indices. Interior: index of the second child.
@@ -94,11 +160,15 @@ typedef struct EmberBvhNode {
 // Views of the engine's scene arrays. A pointer may be null only when its count is 0. The
 // arrays must stay alive and unchanged during each call that reads them; ember keeps nothing.
 typedef struct EmberScene {
+  // `sizeof(EmberScene)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+  uint32_t struct_size;
   // `vertex_count` positions.
   const float (*positions)[3];
   // `vertex_count` shading normals (need not be unit length).
   const float (*normals)[3];
   uint32_t vertex_count;
+  // `vertex_count` texture coordinates `(u, v)`, or null when no material is textured.
+  const float (*uvs)[2];
   // `triangle_count` triangles of three vertex indices.
   const uint32_t (*triangles)[3];
   // `triangle_count` material ids, indices into `materials`.
@@ -107,6 +177,12 @@ typedef struct EmberScene {
   // `material_count` materials (at most `EMBER_MAX_MATERIALS` for rendering and baking).
   const struct EmberMaterial *materials;
   uint32_t material_count;
+  // `texture_count` textures, the targets of the materials' texture ids.
+  const struct EmberTexture *textures;
+  uint32_t texture_count;
+  // `texel_count` linear RGB texels, finite and non-negative, that the textures index.
+  const float (*texels)[3];
+  uint32_t texel_count;
   // `emitter_count` emissive triangles, ascending (from `ember_build_emitters`).
   const uint32_t *emitter_triangles;
   // `emitter_count` cumulative selection weights, non-decreasing.
@@ -122,6 +198,8 @@ typedef struct EmberScene {
 // A pinhole camera (TinyRender's): right-handed look-at, full vertical field of view in
 // degrees, a film of `width × height` pixels whose row 0 is the top row.
 typedef struct EmberCamera {
+  // `sizeof(EmberCamera)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+  uint32_t struct_size;
   float eye[3];
   float at[3];
   float up[3];
@@ -132,6 +210,8 @@ typedef struct EmberCamera {
 
 // Everything besides the scene and the camera that determines an image or a bake.
 typedef struct EmberSettings {
+  // `sizeof(EmberSettings)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+  uint32_t struct_size;
   // `EMBER_INTEGRATOR_*` (rendering only).
   uint32_t integrator;
   // Scattering vertices: 0 = emitters only, 1 = direct light, N bounces, -1 = unbounded
@@ -151,9 +231,13 @@ typedef struct EmberSettings {
 
 // A surface point to bake.
 typedef struct EmberBakePoint {
+  // `sizeof(EmberBakePoint)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+  uint32_t struct_size;
   float p[3];
   // The surface normal at `p` (need not be unit length).
   float n[3];
+  // Texture coordinates of the point (read only when its material is textured).
+  float uv[2];
   // Material id of the surface, an index into the scene's materials.
   uint32_t material;
   // Key of the point's random numbers (sample `i` uses `(seed, key, i)`): give each point its
@@ -164,6 +248,11 @@ typedef struct EmberBakePoint {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+// The ABI version of this library: compare it with `EMBER_ABI_VERSION` of the header the
+// caller was compiled with before calling anything else (they differ when header and library
+// come from different versions of ember).
+uint32_t ember_abi_version(void);
 
 // How many BVH nodes and triangle indices `ember_build_bvh` needs for `triangle_count`
 // triangles (`2n - 1` nodes, at least 1, and `n` indices).
@@ -192,10 +281,13 @@ int32_t ember_build_bvh(const struct EmberScene *scene,
 
 // Writes the emitter table: the ascending indices of every triangle whose material has
 // non-zero `Ke` and whose area is positive, and for each the cumulative selection weight, a
-// triangle being chosen in proportion to its area among all of them (the command-line
-// renderer's rule when the scene has one emitting object). `*out_count` receives the number of
-// entries; with too small a `capacity` (0 to ask) the call returns `EMBER_ERROR_SIZE` and
-// `*out_count` is the capacity needed. Reads positions, triangles and materials.
+// triangle being chosen in proportion to its area among all of them (the kernel's
+// `EmitterPolicy::Area`; the command-line renderer's rule when the scene has one emitting
+// object). Engines that want another policy (emitters chosen uniformly, then by area; or by
+// power) fill `emitter_triangles` and `emitter_cdf` themselves. `*out_count` receives the
+// number of entries; with too small a `capacity` (0 to ask) the call returns
+// `EMBER_ERROR_SIZE` and `*out_count` is the capacity needed. Reads positions, triangles and
+// materials (their fields are checked; texture ids are not, as textures are not read).
 //
 // # Safety
 // `scene` must point to a valid [`EmberScene`] whose geometry and material arrays are valid for
@@ -231,10 +323,12 @@ int32_t ember_render_tile(const struct EmberScene *scene,
                           uint32_t h,
                           float *out_rgb);
 
-// Bakes the diffuse outgoing radiance at each of the `n` points (emission plus the diffuse
-// part of the material's reflection of the incident light, `settings->spp` samples each, path
-// settings and `settings->bake_estimator` as given) into `out_rgb`, `3·n` floats. Point `i`'s
-// value depends only on the point (its `key`), never on its position in the batch.
+// Bakes the view-independent radiance at each of the `n` points into `out_rgb`, `3·n` floats:
+// the emission plus the cosine-weighted average over view directions of the light the full
+// BSDF scatters there (for a diffuse surface its outgoing radiance; a mirror shows `Ks` times
+// the average incident light), `settings->spp` samples each, path settings and
+// `settings->bake_estimator` as given. A textured material is read at the point's `uv`. Point
+// `i`'s value depends only on the point (its `key`), never on its position in the batch.
 //
 // # Safety
 // `scene` and `settings` must point to valid structs, the scene's arrays valid for their

@@ -4,14 +4,17 @@
 //!
 //! 1. Fill an [`EmberScene`] with pointers to its vertex positions and normals (`float[3]`
 //!    each), triangles (`uint32_t[3]` vertex indices, counter-clockwise front), one material id
-//!    per triangle and the materials ([`EmberMaterial`]).
+//!    per triangle and the materials ([`EmberMaterial`]); when a material is textured, also the
+//!    per-vertex texture coordinates (`float[2]`), the textures ([`EmberTexture`]) and their
+//!    texels (`float[3]`).
 //! 2. [`ember_bvh_capacity`] says how many nodes and indices the BVH needs for its triangle
 //!    count; [`ember_build_bvh`] builds it into the engine's buffers.
 //! 3. [`ember_build_emitters`] writes the emitter table (every emissive triangle with positive
 //!    area, chosen in proportion to its area; call it with capacity 0 to learn the size).
 //! 4. Point the scene's `bvh_*` and `emitter_*` fields at those buffers; then
 //!    [`ember_render_tile`] renders any rectangle of the image and [`ember_bake_vertices`] bakes
-//!    the diffuse radiance at a list of surface points, into the engine's output arrays.
+//!    the view-independent radiance at a list of surface points, into the engine's output
+//!    arrays.
 //!
 //! Rules: no global state, no allocation, nothing is retained after a call returns. Every
 //! function is thread-safe: calls may run concurrently on shared inputs as long as their output
@@ -20,12 +23,77 @@
 //! it, and on every target (x86_64, aarch64, wasm32). Output arrays must not overlap any input.
 //!
 //! Every function returns [`EMBER_OK`] or an `EMBER_ERROR_*` code and checks its inputs before
-//! it uses them (null pointers, sizes, indices, the BVH's structure): a call never reads out of
-//! bounds of the counts it was given. Rendering calls validate the whole scene each time, which
-//! costs time linear in its size; render tiles of a few thousand pixels or more.
+//! it uses them (null pointers, sizes, indices, texture ids and texel ranges, the BVH's
+//! structure): a call never reads out of bounds of the counts it was given. Rendering calls
+//! validate the whole scene each time, texels included, which costs time linear in its size;
+//! render tiles of a few thousand pixels or more.
 //!
 //! Materials are converted on the stack at each rendering call, so a scene may have at most
-//! [`EMBER_MAX_MATERIALS`] materials (about 52 bytes of stack each).
+//! [`EMBER_MAX_MATERIALS`] materials (a table of 60 bytes per entry, 60 KiB, on the stack of
+//! each rendering call). A textured Phong or mixture material needs the per-channel maximum
+//! and average of its textures' texels (its energy clamp and lobe weight, as
+//! [`PhongParams::new`] computes them for Rust hosts, so C and Rust render the same bits); a
+//! call computes them once per texture for the first 256 textures such materials read (a
+//! further 7 KiB of stack while the materials are converted), and once per material for
+//! textures beyond those.
+//!
+//! # ABI version
+//!
+//! This is version 2 ([`EMBER_ABI_VERSION`]) of the C API. Callers check at start-up that the
+//! library they linked implements the header they compiled with,
+//!
+//! ```c
+//! if (ember_abi_version() != EMBER_ABI_VERSION) { /* header and library differ */ }
+//! ```
+//!
+//! and set the first field of every struct they fill, `struct_size`, to `sizeof` of that struct
+//! as their header declares it (`m.struct_size = sizeof(EmberMaterial);`). Every call checks
+//! the `struct_size` of each struct it is handed (of an array: the first record's before
+//! anything else of the array is read, then every record's) and returns [`EMBER_ERROR_ABI`],
+//! reading nothing more, when it is not this library's size. Version 2 accepts exactly its own
+//! sizes; later versions only append fields, so that they can recognise an older caller's
+//! records by their size.
+//!
+//! Which structs carry the field, and why:
+//! - [`EmberMaterial`] changed (new kinds, texture ids, IOR, tint, roughness). A version 1
+//!   material began with `kind` (0 to 2), never a valid size: it is refused, not misread.
+//! - [`EmberScene`] gained the texture arrays. A version 1 scene began with its positions
+//!   pointer, refused unless that pointer's low 32 bits equal `sizeof(EmberScene)` (one 8-byte
+//!   aligned address in 2^29). Version 1 code recompiled against this header that zeroes its
+//!   scene and sets fields by name leaves the size 0, and is refused.
+//! - [`EmberBakePoint`] gained `uv` (a textured material is baked at the point's texture
+//!   coordinates); a version 1 point began with a float coordinate.
+//! - [`EmberSettings`] and [`EmberCamera`] did not change but get the field now, while every
+//!   caller has to touch its code anyway, so that they can grow later (an emitter policy, a
+//!   lens) without being misread by or from older code. Version 1 settings began with
+//!   `integrator` (0 to 2), a camera with a float.
+//! - [`EmberTexture`] and [`EmberBvhNode`] have no size field: ember reads and writes arrays of
+//!   them in place as the kernel's own types (no copy, no limit on their number). Their layout
+//!   is fixed within an ABI version; a change to either changes [`EMBER_ABI_VERSION`].
+//!
+//! A version 1 program recompiled against this header fails to compile where it initialises
+//! structs by position, and gets `EMBER_ERROR_ABI` where it zeroes them and sets fields by
+//! name. Version 1 libraries have no `ember_abi_version`, so a version 2 program does not link
+//! against one.
+//!
+//! # Materials and textures
+//!
+//! [`EmberMaterial::kind`] selects the scattering model and the fields it reads; the others
+//! are ignored, and not checked:
+//!
+//! | kind | reads (and `ke`) |
+//! | --- | --- |
+//! | `EMBER_MATERIAL_DIFFUSE` | `kd`, `kd_texture` |
+//! | `EMBER_MATERIAL_PHONG`, `EMBER_MATERIAL_MIXTURE` | `kd`, `kd_texture`, `ks`, `ks_texture`, `ns` |
+//! | `EMBER_MATERIAL_CONDUCTOR` | `ks`, `ks_texture`, `alpha` |
+//! | `EMBER_MATERIAL_DIELECTRIC` | `ior`, `tf`, `alpha` |
+//!
+//! Roughness is the Trowbridge–Reitz (GGX) `alpha` itself, not MTL's `Pr` (the OBJ loader
+//! converts with `alpha = Pr²`); 0 is a smooth mirror or clear glass. A texture id other than
+//! [`EMBER_NO_TEXTURE`] replaces the constant reflectance by the texels of that texture, looked
+//! up at the surface point's texture coordinates (nearest texel of `frac(uv·uv_scale +
+//! uv_offset)`, texels stored bottom row first, as the command line does). Note that a zeroed
+//! record refers to texture 0: set unused ids to `EMBER_NO_TEXTURE`.
 
 // Every `unsafe` block states why it is sound; clippy enforces the comment.
 #![deny(clippy::undocumented_unsafe_blocks)]
@@ -36,27 +104,45 @@ use crate::emitter::{build_emitter_table, EmitterTableError};
 use crate::integrator::{
     bake_vertex, render_pixel, BakeEstimator, BakePoint, Integrator, PathSettings, PixelStats,
 };
-use crate::scene::{Material, SceneView};
+use crate::material::{PhongParams, Reflectance, Surface};
+use crate::scene::{Material, SceneError, SceneView};
+use crate::texture::{Texture, Textures, NO_TEXTURE};
 use crate::Rgb;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
+
+/// The version of the C API this header describes. Compare it with [`ember_abi_version`] at
+/// start-up: they differ when the program was compiled against another ember.h than the
+/// library it runs with. Version 2 added `struct_size` as the first field of every struct the
+/// caller fills, conductor and dielectric materials, and textures.
+pub const EMBER_ABI_VERSION: u32 = 2;
 
 /// Success.
 pub const EMBER_OK: i32 = 0;
-/// A required pointer was null (a pointer may be null only when its count is 0).
+/// A required pointer was null (a pointer may be null only when its count is 0), or a textured
+/// material without texture coordinates.
 pub const EMBER_ERROR_NULL_POINTER: i32 = 1;
 /// A count or capacity is wrong: an output buffer too small, a size that overflows, a
 /// misaligned array.
 pub const EMBER_ERROR_SIZE: i32 = 2;
 /// The scene's arrays are inconsistent: an index out of range, an unsorted emitter table, a
-/// BVH that is not a tree over the scene's triangles, a bad material.
+/// BVH that is not a tree over the scene's triangles, a bad material, a texture id without a
+/// texture, a texture whose texels lie outside the texel array, a bad texel.
 pub const EMBER_ERROR_INVALID_SCENE: i32 = 3;
 /// A camera, settings, tile or bake point value is out of range.
 pub const EMBER_ERROR_INVALID_ARGUMENT: i32 = 4;
 /// More than [`EMBER_MAX_MATERIALS`] materials.
 pub const EMBER_ERROR_TOO_MANY_MATERIALS: i32 = 5;
+/// A struct's `struct_size` is not its size in this library: the caller was compiled against
+/// the header of another ABI version (or did not set the field). Nothing else of it was read.
+pub const EMBER_ERROR_ABI: i32 = 6;
 
 /// Most materials a scene may have in the rendering calls.
 pub const EMBER_MAX_MATERIALS: u32 = 1024;
+
+/// A texture id meaning "no texture: use the constant" ([`EmberMaterial::kd_texture`],
+/// [`EmberMaterial::ks_texture`]).
+pub const EMBER_NO_TEXTURE: u32 = u32::MAX;
+const _: () = assert!(EMBER_NO_TEXTURE == NO_TEXTURE);
 
 /// [`EmberMaterial::kind`]: Lambertian, `Kd/π` (MTL `illum 7`).
 pub const EMBER_MATERIAL_DIFFUSE: u32 = 0;
@@ -65,6 +151,13 @@ pub const EMBER_MATERIAL_DIFFUSE: u32 = 0;
 pub const EMBER_MATERIAL_PHONG: u32 = 1;
 /// [`EmberMaterial::kind`]: the diffuse + Phong mixture (`illum 8`).
 pub const EMBER_MATERIAL_MIXTURE: u32 = 2;
+/// [`EmberMaterial::kind`]: a metal (`illum 5`) of reflectance `ks` at every angle and GGX
+/// roughness `alpha` (0: a perfect mirror).
+pub const EMBER_MATERIAL_CONDUCTOR: u32 = 3;
+/// [`EmberMaterial::kind`]: glass (`illum 6`): relative index of refraction `ior`, exact
+/// Fresnel, transmission tinted by `tf`, GGX roughness `alpha` (0: smooth). The outside is the
+/// side the shading normal points to.
+pub const EMBER_MATERIAL_DIELECTRIC: u32 = 4;
 
 /// [`EmberSettings::integrator`]: path tracing with BSDF sampling only.
 pub const EMBER_INTEGRATOR_PATH_IMPLICIT: u32 = 0;
@@ -78,20 +171,56 @@ pub const EMBER_BAKE_MIS: u32 = 0;
 /// [`EmberSettings::bake_estimator`]: next-event estimation only (TinyRender's bake).
 pub const EMBER_BAKE_EXPLICIT: u32 = 1;
 
-/// A material. Reflectances and emission are linear RGB, finite and non-negative.
+/// A material. `kind` says which fields are read (the others are ignored); colours are linear
+/// RGB, finite and non-negative.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmberMaterial {
-    /// `EMBER_MATERIAL_DIFFUSE`, `EMBER_MATERIAL_PHONG` or `EMBER_MATERIAL_MIXTURE`.
+    /// `sizeof(EmberMaterial)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+    pub struct_size: u32,
+    /// `EMBER_MATERIAL_DIFFUSE`, `_PHONG`, `_MIXTURE`, `_CONDUCTOR` or `_DIELECTRIC`.
     pub kind: u32,
-    /// Diffuse reflectance `Kd`.
+    /// Diffuse reflectance `Kd` (diffuse, Phong, mixture).
     pub kd: [f32; 3],
-    /// Specular reflectance `Ks` (ignored by diffuse materials).
+    /// `EMBER_NO_TEXTURE` for the constant `kd`, or the id of the texture that replaces it.
+    pub kd_texture: u32,
+    /// Specular reflectance `Ks` (Phong, mixture); a conductor's reflectance.
     pub ks: [f32; 3],
-    /// Phong exponent `Ns`, finite and >= 0 (ignored by diffuse materials).
+    /// `EMBER_NO_TEXTURE` for the constant `ks`, or the id of the texture that replaces it.
+    pub ks_texture: u32,
+    /// Phong exponent `Ns`, finite and >= 0 (Phong, mixture).
     pub ns: f32,
-    /// Emitted radiance `Ke`, one-sided toward the side the shading normal points to.
+    /// Emitted radiance `Ke` (every kind), one-sided toward the side the shading normal points
+    /// to.
     pub ke: [f32; 3],
+    /// Relative index of refraction, inside over outside (MTL `Ni`), finite and > 0
+    /// (dielectric).
+    pub ior: f32,
+    /// Transmission tint `Tf` (dielectric).
+    pub tf: [f32; 3],
+    /// Roughness: the Trowbridge–Reitz (GGX) `alpha` itself, not MTL's `Pr` (`alpha = Pr²`),
+    /// finite and >= 0; 0 is smooth, a mirror or clear glass (conductor, dielectric).
+    pub alpha: f32,
+}
+
+/// An RGB image texture: `width × height` texels at `texels[first_texel ..]` of the scene's
+/// texel array, bottom row first, each row left to right. A surface point reads the nearest
+/// texel of `frac(uv · uv_scale + uv_offset)` (the MTL map options `-s` and `-o`; non-finite
+/// coordinates read texel 0). Read in place as the kernel's `Texture`, so it has no
+/// `struct_size`: its layout changes only with `EMBER_ABI_VERSION`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmberTexture {
+    /// At least 1.
+    pub width: u32,
+    /// At least 1.
+    pub height: u32,
+    /// Index of the texture's first texel in the scene's texel array.
+    pub first_texel: u32,
+    /// Finite.
+    pub uv_scale: [f32; 2],
+    /// Finite.
+    pub uv_offset: [f32; 2],
 }
 
 /// Views of the engine's scene arrays. A pointer may be null only when its count is 0. The
@@ -99,11 +228,15 @@ pub struct EmberMaterial {
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct EmberScene {
+    /// `sizeof(EmberScene)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+    pub struct_size: u32,
     /// `vertex_count` positions.
     pub positions: *const [f32; 3],
     /// `vertex_count` shading normals (need not be unit length).
     pub normals: *const [f32; 3],
     pub vertex_count: u32,
+    /// `vertex_count` texture coordinates `(u, v)`, or null when no material is textured.
+    pub uvs: *const [f32; 2],
     /// `triangle_count` triangles of three vertex indices.
     pub triangles: *const [u32; 3],
     /// `triangle_count` material ids, indices into `materials`.
@@ -112,6 +245,12 @@ pub struct EmberScene {
     /// `material_count` materials (at most `EMBER_MAX_MATERIALS` for rendering and baking).
     pub materials: *const EmberMaterial,
     pub material_count: u32,
+    /// `texture_count` textures, the targets of the materials' texture ids.
+    pub textures: *const EmberTexture,
+    pub texture_count: u32,
+    /// `texel_count` linear RGB texels, finite and non-negative, that the textures index.
+    pub texels: *const [f32; 3],
+    pub texel_count: u32,
     /// `emitter_count` emissive triangles, ascending (from `ember_build_emitters`).
     pub emitter_triangles: *const u32,
     /// `emitter_count` cumulative selection weights, non-decreasing.
@@ -129,6 +268,8 @@ pub struct EmberScene {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmberCamera {
+    /// `sizeof(EmberCamera)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+    pub struct_size: u32,
     pub eye: [f32; 3],
     pub at: [f32; 3],
     pub up: [f32; 3],
@@ -141,6 +282,8 @@ pub struct EmberCamera {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmberSettings {
+    /// `sizeof(EmberSettings)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+    pub struct_size: u32,
     /// `EMBER_INTEGRATOR_*` (rendering only).
     pub integrator: u32,
     /// Scattering vertices: 0 = emitters only, 1 = direct light, N bounces, -1 = unbounded
@@ -162,9 +305,13 @@ pub struct EmberSettings {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmberBakePoint {
+    /// `sizeof(EmberBakePoint)` (the ABI check; `EMBER_ERROR_ABI` otherwise).
+    pub struct_size: u32,
     pub p: [f32; 3],
     /// The surface normal at `p` (need not be unit length).
     pub n: [f32; 3],
+    /// Texture coordinates of the point (read only when its material is textured).
+    pub uv: [f32; 2],
     /// Material id of the surface, an index into the scene's materials.
     pub material: u32,
     /// Key of the point's random numbers (sample `i` uses `(seed, key, i)`): give each point its
@@ -174,6 +321,8 @@ pub struct EmberBakePoint {
 
 /// One 32-byte BVH node, as `ember_build_bvh` writes it: the kernel's `BvhNode`, field for
 /// field. Nodes are in depth-first order; an interior node's first child is the next node.
+/// Written and read in place, so it has no `struct_size`: its layout changes only with
+/// `EMBER_ABI_VERSION`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct EmberBvhNode {
@@ -188,9 +337,12 @@ pub struct EmberBvhNode {
     pub pad: u8,
 }
 
-// Positions and normals are read as `glam::Vec3` in place of `[f32; 3]`.
+// Positions, normals and texels are read as `glam::Vec3` in place of `[f32; 3]`, texture
+// coordinates as `glam::Vec2` in place of `[f32; 2]`.
 const _: () = assert!(core::mem::size_of::<Vec3>() == 12 && core::mem::align_of::<Vec3>() == 4);
-// BVH nodes are read and written as the kernel's `BvhNode` in place of `EmberBvhNode`: both are
+const _: () = assert!(core::mem::size_of::<Vec2>() == 8 && core::mem::align_of::<Vec2>() == 4);
+// BVH nodes are read and written as the kernel's `BvhNode` in place of `EmberBvhNode`, and
+// textures read as the kernel's `Texture` in place of `EmberTexture`: each pair is
 // `#[repr(C)]` with the same fields, so the same layout.
 const _: () = {
     use core::mem::{align_of, offset_of, size_of};
@@ -202,7 +354,53 @@ const _: () = {
     assert!(offset_of!(EmberBvhNode, count) == offset_of!(BvhNode, count));
     assert!(offset_of!(EmberBvhNode, axis) == offset_of!(BvhNode, axis));
     assert!(offset_of!(EmberBvhNode, pad) == offset_of!(BvhNode, pad));
+    assert!(size_of::<EmberTexture>() == size_of::<Texture>());
+    assert!(align_of::<EmberTexture>() == align_of::<Texture>());
+    assert!(offset_of!(EmberTexture, width) == offset_of!(Texture, width));
+    assert!(offset_of!(EmberTexture, height) == offset_of!(Texture, height));
+    assert!(offset_of!(EmberTexture, first_texel) == offset_of!(Texture, first_texel));
+    assert!(offset_of!(EmberTexture, uv_scale) == offset_of!(Texture, uv_scale));
+    assert!(offset_of!(EmberTexture, uv_offset) == offset_of!(Texture, uv_offset));
 };
+
+/// A struct that begins with the ABI check `struct_size`.
+///
+/// # Safety
+/// Implementors are `#[repr(C)]` and their first field is `struct_size: u32`, so a pointer to
+/// one, suitably aligned, is also a pointer to that `u32`.
+unsafe trait Sized32: Copy {
+    fn struct_size(&self) -> u32;
+}
+
+macro_rules! sized32 {
+    ($($t:ty),*) => {$(
+        // SAFETY: `#[repr(C)]` with `struct_size: u32` first (checked just below).
+        unsafe impl Sized32 for $t {
+            fn struct_size(&self) -> u32 {
+                self.struct_size
+            }
+        }
+        const _: () = assert!(core::mem::offset_of!($t, struct_size) == 0);
+    )*};
+}
+sized32!(
+    EmberMaterial,
+    EmberScene,
+    EmberCamera,
+    EmberSettings,
+    EmberBakePoint
+);
+
+/// Whether the record at `ptr` has this library's size, reading only its `struct_size`.
+///
+/// # Safety
+/// `ptr` must be non-null, aligned for `T`, and its first 4 bytes readable.
+unsafe fn has_own_size<T: Sized32>(ptr: *const T) -> bool {
+    // SAFETY: by `Sized32`, `T` begins with a `u32` at offset 0, so `ptr` is aligned for it;
+    // the caller guarantees those 4 bytes readable (the first field of a record of any version).
+    let size = unsafe { ptr.cast::<u32>().read() };
+    size as usize == core::mem::size_of::<T>()
+}
 
 /// Materials substituted for unused entries of the stack table.
 const BLACK: Material = Material::BLACK;
@@ -241,6 +439,37 @@ unsafe fn slice<'a, T>(ptr: *const T, len: usize) -> Result<&'a [T], i32> {
     Ok(unsafe { core::slice::from_raw_parts(ptr, len) })
 }
 
+/// Borrows `len` records at `ptr` after checking their `struct_size`: the first record's before
+/// anything else is read (so an array of an older, smaller layout is refused without reading
+/// past its first field), then every record's.
+///
+/// # Safety
+/// As for [`slice`]; for a refused array only its first 4 bytes need be readable.
+unsafe fn records<'a, T: Sized32>(ptr: *const T, len: usize) -> Result<&'a [T], i32> {
+    if len == 0 {
+        return Ok(&[]);
+    }
+    if ptr.is_null() {
+        return Err(EMBER_ERROR_NULL_POINTER);
+    }
+    if !ptr.is_aligned() {
+        return Err(EMBER_ERROR_SIZE);
+    }
+    // SAFETY: non-null and aligned; the caller guarantees the first record's first field.
+    if !unsafe { has_own_size(ptr) } {
+        return Err(EMBER_ERROR_ABI);
+    }
+    // SAFETY: the caller's contract, as for `slice`.
+    let records = unsafe { slice(ptr, len) }?;
+    if records
+        .iter()
+        .any(|r| r.struct_size() as usize != core::mem::size_of::<T>())
+    {
+        return Err(EMBER_ERROR_ABI);
+    }
+    Ok(records)
+}
+
 /// Borrows `len` elements at `ptr` for writing (nothing for `len == 0`).
 ///
 /// # Safety
@@ -264,18 +493,25 @@ unsafe fn slice_mut<'a, T>(ptr: *mut T, len: usize) -> Result<&'a mut [T], i32> 
     Ok(unsafe { core::slice::from_raw_parts_mut(ptr, len) })
 }
 
-/// Borrows the struct at `ptr`.
+/// Borrows the record at `ptr` after checking its `struct_size` (reading nothing else of a
+/// record of another size).
 ///
 /// # Safety
-/// A non-null `ptr` must point to a valid, aligned `T` that is not written during `'a`.
-unsafe fn reference<'a, T>(ptr: *const T) -> Result<&'a T, i32> {
+/// A non-null `ptr` must point to a valid, aligned `T` that is not written during `'a`, or to
+/// a record of another ABI version whose first 4 bytes are readable.
+unsafe fn record<'a, T: Sized32>(ptr: *const T) -> Result<&'a T, i32> {
     if ptr.is_null() {
         return Err(EMBER_ERROR_NULL_POINTER);
     }
     if !ptr.is_aligned() {
         return Err(EMBER_ERROR_SIZE);
     }
-    // SAFETY: non-null and aligned; the caller guarantees a valid `T` for `'a`.
+    // SAFETY: non-null and aligned; the caller guarantees the first field readable.
+    if !unsafe { has_own_size(ptr) } {
+        return Err(EMBER_ERROR_ABI);
+    }
+    // SAFETY: non-null, aligned and of this library's size; the caller guarantees a valid `T`
+    // for `'a`.
     Ok(unsafe { &*ptr })
 }
 
@@ -290,7 +526,7 @@ unsafe fn store<T>(ptr: *mut T, value: T) {
     }
 }
 
-/// The geometry arrays of a scene (what the builders read).
+/// The geometry and material arrays of a scene (what the emitter builder reads).
 struct Geometry<'a> {
     positions: &'a [Vec3],
     normals: &'a [Vec3],
@@ -300,7 +536,8 @@ struct Geometry<'a> {
 }
 
 /// # Safety
-/// `scene` must satisfy the contract of [`EmberScene`] for the duration of `'a`.
+/// `scene` must satisfy the contract of [`EmberScene`] for its geometry and material arrays
+/// for the duration of `'a`.
 unsafe fn geometry<'a>(scene: &EmberScene) -> Result<Geometry<'a>, i32> {
     let nv = scene.vertex_count as usize;
     let nt = scene.triangle_count as usize;
@@ -312,7 +549,34 @@ unsafe fn geometry<'a>(scene: &EmberScene) -> Result<Geometry<'a>, i32> {
             normals: slice(scene.normals.cast::<Vec3>(), nv)?,
             triangles: slice(scene.triangles, nt)?,
             triangle_materials: slice(scene.triangle_materials, nt)?,
-            materials: slice(scene.materials, scene.material_count as usize)?,
+            materials: records(scene.materials, scene.material_count as usize)?,
+        })
+    }
+}
+
+/// The texture coordinates, textures and texels of a scene.
+///
+/// # Safety
+/// `scene` must satisfy the contract of [`EmberScene`] for those arrays for the duration of
+/// `'a`.
+unsafe fn textures<'a>(scene: &EmberScene) -> Result<Textures<'a>, i32> {
+    let nuv = if scene.uvs.is_null() {
+        0
+    } else {
+        scene.vertex_count as usize
+    };
+    // SAFETY: the caller guarantees each pointer valid for its count (the coordinates for the
+    // vertex count when not null); `Vec2` has the layout of `[f32; 2]`, `Vec3` of `[f32; 3]`
+    // and `Texture` of `EmberTexture` (asserted above), so the arrays are arrays of the
+    // kernel's types.
+    unsafe {
+        Ok(Textures {
+            uvs: slice(scene.uvs.cast::<Vec2>(), nuv)?,
+            textures: slice(
+                scene.textures.cast::<Texture>(),
+                scene.texture_count as usize,
+            )?,
+            texels: slice(scene.texels.cast::<Rgb>(), scene.texel_count as usize)?,
         })
     }
 }
@@ -321,21 +585,115 @@ fn is_colour(c: [f32; 3]) -> bool {
     c.iter().all(|v| v.is_finite() && *v >= 0.0)
 }
 
-/// The kernel's material for a C material, or `None` if it is invalid.
-fn convert_material(m: &EmberMaterial) -> Option<Material> {
-    if !is_colour(m.kd) || !is_colour(m.ks) || !is_colour(m.ke) || !m.ns.is_finite() || m.ns < 0.0 {
-        return None;
+/// Checks the fields `m.kind` reads (ranges only; texture ids are checked against the scene's
+/// textures where they are resolved).
+fn check_material(m: &EmberMaterial) -> Result<(), i32> {
+    let roughness = |a: f32| a.is_finite() && a >= 0.0;
+    let ok = is_colour(m.ke)
+        && match m.kind {
+            EMBER_MATERIAL_DIFFUSE => is_colour(m.kd),
+            EMBER_MATERIAL_PHONG | EMBER_MATERIAL_MIXTURE => {
+                is_colour(m.kd) && is_colour(m.ks) && m.ns.is_finite() && m.ns >= 0.0
+            }
+            EMBER_MATERIAL_CONDUCTOR => is_colour(m.ks) && roughness(m.alpha),
+            EMBER_MATERIAL_DIELECTRIC => {
+                m.ior.is_finite() && m.ior > 0.0 && is_colour(m.tf) && roughness(m.alpha)
+            }
+            _ => false,
+        };
+    if ok {
+        Ok(())
+    } else {
+        Err(EMBER_ERROR_INVALID_SCENE)
     }
-    let (kd, ks) = (Rgb::from_array(m.kd), Rgb::from_array(m.ks));
-    let material = match m.kind {
-        EMBER_MATERIAL_DIFFUSE => Material::diffuse(kd),
-        EMBER_MATERIAL_PHONG => Material::phong(kd, ks, m.ns),
-        EMBER_MATERIAL_MIXTURE => Material::mixture(kd, ks, m.ns),
-        _ => return None,
-    };
-    Some(material.with_emission(Rgb::from_array(m.ke)))
 }
 
+/// Texel statistics per texture id, so that textures shared by many Phong materials are
+/// summed once per call. Holds [`Self::CAPACITY`] textures; beyond that each lookup sums.
+struct TexelStatsCache {
+    len: usize,
+    entries: [(u32, Rgb, Rgb); Self::CAPACITY],
+}
+
+impl TexelStatsCache {
+    const CAPACITY: usize = 256;
+
+    fn new() -> Self {
+        Self {
+            len: 0,
+            entries: [(NO_TEXTURE, Rgb::ZERO, Rgb::ZERO); Self::CAPACITY],
+        }
+    }
+
+    /// [`Reflectance::stats`], remembered per texture.
+    fn stats(&mut self, r: Reflectance, textures: &Textures<'_>) -> Result<(Rgb, Rgb), i32> {
+        if r.is_textured() {
+            let known = self.entries[..self.len].iter().find(|e| e.0 == r.texture);
+            if let Some(&(_, max, avg)) = known {
+                return Ok((max, avg));
+            }
+        }
+        let s = r.stats(textures).ok_or(EMBER_ERROR_INVALID_SCENE)?;
+        if r.is_textured() && self.len < Self::CAPACITY {
+            self.entries[self.len] = (r.texture, s.0, s.1);
+            self.len += 1;
+        }
+        Ok(s)
+    }
+}
+
+/// The kernel's material for a C material: its fields checked, a textured Phong material's
+/// clamp and weight computed from its textures' texels.
+fn convert_material(
+    m: &EmberMaterial,
+    textures: &Textures<'_>,
+    cache: &mut TexelStatsCache,
+) -> Result<Material, i32> {
+    check_material(m)?;
+    let reflectance = |value: [f32; 3], texture: u32| {
+        if texture == EMBER_NO_TEXTURE {
+            Reflectance::constant(Rgb::from_array(value))
+        } else {
+            Reflectance::texture(texture)
+        }
+    };
+    let (kd, ks) = (
+        reflectance(m.kd, m.kd_texture),
+        reflectance(m.ks, m.ks_texture),
+    );
+    let mut phong = || -> Result<PhongParams, i32> {
+        let (kd_stats, ks_stats) = (cache.stats(kd, textures)?, cache.stats(ks, textures)?);
+        Ok(PhongParams::from_stats(kd, ks, m.ns, kd_stats, ks_stats))
+    };
+    let surface = match m.kind {
+        EMBER_MATERIAL_DIFFUSE => Surface::Diffuse { kd },
+        EMBER_MATERIAL_PHONG => Surface::Phong(phong()?),
+        EMBER_MATERIAL_MIXTURE => Surface::Mixture(phong()?),
+        EMBER_MATERIAL_CONDUCTOR => Surface::Conductor { ks, alpha: m.alpha },
+        _ => Surface::Dielectric {
+            eta: m.ior,
+            tf: Rgb::from_array(m.tf),
+            alpha: m.alpha,
+        },
+    };
+    Ok(Material::new(surface).with_emission(Rgb::from_array(m.ke)))
+}
+
+/// Checks what of the textures [`SceneView::validate`] does not: finite coordinate transforms
+/// and finite, non-negative texels.
+fn check_textures(t: &Textures<'_>) -> Result<(), i32> {
+    let finite = |v: Vec2| v.is_finite();
+    let ok = t
+        .textures
+        .iter()
+        .all(|t| finite(t.uv_scale) && finite(t.uv_offset))
+        && t.texels.iter().all(|c| is_colour(c.to_array()));
+    if ok {
+        Ok(())
+    } else {
+        Err(EMBER_ERROR_INVALID_SCENE)
+    }
+}
 /// Checks that `nodes` is a depth-first BVH over `prims` primitives that traversal can walk:
 /// pre-order numbering with the first child next, leaves inside `prim_order`, no level deeper
 /// than the traversal stack. Then traversal neither loops nor indexes out of bounds.
@@ -382,12 +740,14 @@ unsafe fn scene_view<'a>(
     table: &'a mut [Material; EMBER_MAX_MATERIALS as usize],
 ) -> Result<SceneView<'a>, i32> {
     // SAFETY: forwarded contract.
-    let g = unsafe { geometry(scene) }?;
+    let (g, textures) = unsafe { (geometry(scene)?, textures(scene)?) };
     if g.materials.len() > table.len() {
         return Err(EMBER_ERROR_TOO_MANY_MATERIALS);
     }
+    check_textures(&textures)?;
+    let mut cache = TexelStatsCache::new();
     for (out, m) in table.iter_mut().zip(g.materials) {
-        *out = convert_material(m).ok_or(EMBER_ERROR_INVALID_SCENE)?;
+        *out = convert_material(m, &textures, &mut cache)?;
     }
     let ne = scene.emitter_count as usize;
     // SAFETY: forwarded contract: each pointer is valid for its count; `EmberBvhNode` has the
@@ -419,9 +779,13 @@ unsafe fn scene_view<'a>(
         emitter_triangles,
         emitter_cdf,
         bvh: Bvh { nodes, prim_order }.into(),
-        textures: crate::texture::Textures::NONE,
+        textures,
     };
-    view.validate().map_err(|_| EMBER_ERROR_INVALID_SCENE)?;
+    view.validate().map_err(|e| match e {
+        // The texture coordinates are null (when not, they have one entry per vertex).
+        SceneError::UvCount { .. } => EMBER_ERROR_NULL_POINTER,
+        _ => EMBER_ERROR_INVALID_SCENE,
+    })?;
     Ok(view)
 }
 
@@ -439,6 +803,14 @@ fn path_settings(s: &EmberSettings) -> Result<PathSettings, i32> {
 
 fn status(r: Result<(), i32>) -> i32 {
     r.err().unwrap_or(EMBER_OK)
+}
+
+/// The ABI version of this library: compare it with `EMBER_ABI_VERSION` of the header the
+/// caller was compiled with before calling anything else (they differ when header and library
+/// come from different versions of ember).
+#[no_mangle]
+pub extern "C" fn ember_abi_version() -> u32 {
+    EMBER_ABI_VERSION
 }
 
 /// How many BVH nodes and triangle indices `ember_build_bvh` needs for `triangle_count`
@@ -507,22 +879,25 @@ unsafe fn ember_build_bvh_impl(
     index_capacity: u32,
     out_node_count: *mut u32,
 ) -> Result<(), i32> {
-    // SAFETY: the caller's contract above; `EmberBvhNode` has the layout of `BvhNode`
-    // (asserted above), so the node buffer is a buffer of `BvhNode`.
-    let (g, nodes, indices) = unsafe {
-        let scene = reference(scene)?;
-        let g = geometry(scene)?;
-        let nt = g.triangles.len();
+    // SAFETY: the caller's contract above (the position and triangle arrays valid for their
+    // counts); `Vec3` has the layout of `[f32; 3]` and `EmberBvhNode` that of `BvhNode`
+    // (asserted above), so the positions are `Vec3`s and the node buffer holds `BvhNode`s.
+    let (positions, triangles, nodes, indices) = unsafe {
+        let scene = record(scene)?;
+        let positions = slice(scene.positions.cast::<Vec3>(), scene.vertex_count as usize)?;
+        let triangles = slice(scene.triangles, scene.triangle_count as usize)?;
+        let nt = triangles.len();
         if (index_capacity as usize) < nt || (node_capacity as usize) < bvh::max_nodes(nt) {
             return Err(EMBER_ERROR_SIZE);
         }
         (
-            g,
+            positions,
+            triangles,
             slice_mut(nodes.cast::<BvhNode>(), node_capacity as usize)?,
             slice_mut(indices, nt)?,
         )
     };
-    let used = match bvh::build_triangles(g.positions, g.triangles, nodes, indices) {
+    let used = match bvh::build_triangles(positions, triangles, nodes, indices) {
         Ok(used) => used,
         Err(bvh::BvhError::VertexIndex { .. }) => return Err(EMBER_ERROR_INVALID_SCENE),
         Err(_) => return Err(EMBER_ERROR_SIZE),
@@ -534,10 +909,13 @@ unsafe fn ember_build_bvh_impl(
 
 /// Writes the emitter table: the ascending indices of every triangle whose material has
 /// non-zero `Ke` and whose area is positive, and for each the cumulative selection weight, a
-/// triangle being chosen in proportion to its area among all of them (the command-line
-/// renderer's rule when the scene has one emitting object). `*out_count` receives the number of
-/// entries; with too small a `capacity` (0 to ask) the call returns `EMBER_ERROR_SIZE` and
-/// `*out_count` is the capacity needed. Reads positions, triangles and materials.
+/// triangle being chosen in proportion to its area among all of them (the kernel's
+/// `EmitterPolicy::Area`; the command-line renderer's rule when the scene has one emitting
+/// object). Engines that want another policy (emitters chosen uniformly, then by area; or by
+/// power) fill `emitter_triangles` and `emitter_cdf` themselves. `*out_count` receives the
+/// number of entries; with too small a `capacity` (0 to ask) the call returns
+/// `EMBER_ERROR_SIZE` and `*out_count` is the capacity needed. Reads positions, triangles and
+/// materials (their fields are checked; texture ids are not, as textures are not read).
 ///
 /// # Safety
 /// `scene` must point to a valid [`EmberScene`] whose geometry and material arrays are valid for
@@ -569,7 +947,7 @@ unsafe fn ember_build_emitters_impl(
 ) -> Result<(), i32> {
     // SAFETY: the caller's contract above.
     let (g, tris, cdf) = unsafe {
-        let g = geometry(reference(scene)?)?;
+        let g = geometry(record(scene)?)?;
         (
             g,
             slice_mut(out_triangles, capacity as usize)?,
@@ -577,7 +955,7 @@ unsafe fn ember_build_emitters_impl(
         )
     };
     for m in g.materials {
-        convert_material(m).ok_or(EMBER_ERROR_INVALID_SCENE)?;
+        check_material(m)?;
     }
     if g.triangle_materials
         .iter()
@@ -618,7 +996,7 @@ unsafe fn ember_build_emitters_impl(
 pub unsafe extern "C" fn ember_scene_check(scene: *const EmberScene) -> i32 {
     let mut table = [BLACK; EMBER_MAX_MATERIALS as usize];
     // SAFETY: the caller's contract above.
-    status(unsafe { reference(scene).and_then(|s| scene_view(s, &mut table)) }.map(|_| ()))
+    status(unsafe { record(scene).and_then(|s| scene_view(s, &mut table)) }.map(|_| ()))
 }
 
 /// Renders the pixels `x0 .. x0 + w` × `y0 .. y0 + h` of the camera's film and writes their mean
@@ -666,9 +1044,9 @@ unsafe fn ember_render_tile_impl(
     // SAFETY: the caller's contract above.
     let (view, camera, settings) = unsafe {
         (
-            scene_view(reference(scene)?, table)?,
-            reference(camera)?,
-            reference(settings)?,
+            scene_view(record(scene)?, table)?,
+            record(camera)?,
+            record(settings)?,
         )
     };
     let path = path_settings(settings)?;
@@ -726,10 +1104,12 @@ unsafe fn ember_render_tile_impl(
     Ok(())
 }
 
-/// Bakes the diffuse outgoing radiance at each of the `n` points (emission plus the diffuse
-/// part of the material's reflection of the incident light, `settings->spp` samples each, path
-/// settings and `settings->bake_estimator` as given) into `out_rgb`, `3·n` floats. Point `i`'s
-/// value depends only on the point (its `key`), never on its position in the batch.
+/// Bakes the view-independent radiance at each of the `n` points into `out_rgb`, `3·n` floats:
+/// the emission plus the cosine-weighted average over view directions of the light the full
+/// BSDF scatters there (for a diffuse surface its outgoing radiance; a mirror shows `Ks` times
+/// the average incident light), `settings->spp` samples each, path settings and
+/// `settings->bake_estimator` as given. A textured material is read at the point's `uv`. Point
+/// `i`'s value depends only on the point (its `key`), never on its position in the batch.
 ///
 /// # Safety
 /// `scene` and `settings` must point to valid structs, the scene's arrays valid for their
@@ -764,9 +1144,9 @@ unsafe fn ember_bake_vertices_impl(
     // SAFETY: the caller's contract above.
     let (view, settings, points) = unsafe {
         (
-            scene_view(reference(scene)?, table)?,
-            reference(settings)?,
-            slice(points, n as usize)?,
+            scene_view(record(scene)?, table)?,
+            record(settings)?,
+            records(points, n as usize)?,
         )
     };
     let path = path_settings(settings)?;
@@ -789,7 +1169,7 @@ unsafe fn ember_bake_vertices_impl(
             p: Vec3::from_array(p.p),
             n: Vec3::from_array(p.n),
             material: p.material,
-            uv: glam::Vec2::ZERO,
+            uv: Vec2::from_array(p.uv),
         };
         let l = bake_vertex(
             &view,
@@ -810,6 +1190,7 @@ unsafe fn ember_bake_vertices_impl(
 #[allow(clippy::undocumented_unsafe_blocks)]
 mod tests {
     use super::*;
+    use core::mem::size_of;
     use core::ptr::{null, null_mut};
 
     const POSITIONS: [[f32; 3]; 4] = [
@@ -819,35 +1200,60 @@ mod tests {
         [-1.0, 0.0, 1.0],
     ];
     const NORMALS: [[f32; 3]; 4] = [[0.0, 1.0, 0.0]; 4];
+    const UVS: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
     const TRIANGLES: [[u32; 3]; 2] = [[0, 2, 1], [0, 3, 2]];
     const IDS: [u32; 2] = [0, 1];
+
+    /// A material record of `kind` with constant reflectances.
+    const fn material(
+        kind: u32,
+        kd: [f32; 3],
+        ks: [f32; 3],
+        ns: f32,
+        ke: [f32; 3],
+    ) -> EmberMaterial {
+        EmberMaterial {
+            struct_size: size_of::<EmberMaterial>() as u32,
+            kind,
+            kd,
+            kd_texture: EMBER_NO_TEXTURE,
+            ks,
+            ks_texture: EMBER_NO_TEXTURE,
+            ns,
+            ke,
+            ior: 1.5,
+            tf: [1.0; 3],
+            alpha: 0.0,
+        }
+    }
+
     const MATERIALS: [EmberMaterial; 2] = [
-        EmberMaterial {
-            kind: EMBER_MATERIAL_DIFFUSE,
-            kd: [0.5; 3],
-            ks: [0.0; 3],
-            ns: 1.0,
-            ke: [0.0; 3],
-        },
-        EmberMaterial {
-            kind: EMBER_MATERIAL_PHONG,
-            kd: [0.2; 3],
-            ks: [0.5; 3],
-            ns: 10.0,
-            ke: [1.0, 2.0, 3.0],
-        },
+        material(EMBER_MATERIAL_DIFFUSE, [0.5; 3], [0.0; 3], 1.0, [0.0; 3]),
+        material(
+            EMBER_MATERIAL_PHONG,
+            [0.2; 3],
+            [0.5; 3],
+            10.0,
+            [1.0, 2.0, 3.0],
+        ),
     ];
 
     fn geometry_only() -> EmberScene {
         EmberScene {
+            struct_size: size_of::<EmberScene>() as u32,
             positions: POSITIONS.as_ptr(),
             normals: NORMALS.as_ptr(),
             vertex_count: 4,
+            uvs: null(),
             triangles: TRIANGLES.as_ptr(),
             triangle_materials: IDS.as_ptr(),
             triangle_count: 2,
             materials: MATERIALS.as_ptr(),
             material_count: 2,
+            textures: null(),
+            texture_count: 0,
+            texels: null(),
+            texel_count: 0,
             emitter_triangles: null(),
             emitter_cdf: null(),
             emitter_count: 0,
@@ -1004,6 +1410,7 @@ mod tests {
         scene.bvh_node_count = used;
         scene.bvh_indices = indices.as_ptr();
         let camera = EmberCamera {
+            struct_size: size_of::<EmberCamera>() as u32,
             eye: [0.0, 2.0, 3.0],
             at: [0.0, 0.0, 0.0],
             up: [0.0, 1.0, 0.0],
@@ -1012,6 +1419,7 @@ mod tests {
             height: 4,
         };
         let settings = EmberSettings {
+            struct_size: size_of::<EmberSettings>() as u32,
             integrator: EMBER_INTEGRATOR_PATH_MIS,
             max_depth: 2,
             rr_depth: 5,
@@ -1082,14 +1490,18 @@ mod tests {
 
         let points = [
             EmberBakePoint {
+                struct_size: size_of::<EmberBakePoint>() as u32,
                 p: [0.0, 0.0, 0.0],
                 n: [0.0, 1.0, 0.0],
+                uv: [0.0; 2],
                 material: 0,
                 key: 0,
             },
             EmberBakePoint {
+                struct_size: size_of::<EmberBakePoint>() as u32,
                 p: [0.5, 0.0, 0.5],
                 n: [0.0, 1.0, 0.0],
+                uv: [0.0; 2],
                 material: 1,
                 key: 1,
             },
@@ -1116,5 +1528,607 @@ mod tests {
         assert_eq!(r, EMBER_ERROR_NULL_POINTER);
         let r = unsafe { ember_bake_vertices(&scene, &settings, null(), 0, null_mut()) };
         assert_eq!(r, EMBER_OK);
+    }
+
+    /// The BVH of `scene`'s triangles, and the scene pointing at it.
+    fn with_bvh(
+        scene: EmberScene,
+        nodes: &mut [EmberBvhNode; 3],
+        indices: &mut [u32; 2],
+    ) -> EmberScene {
+        let mut used = 0;
+        let r = unsafe {
+            ember_build_bvh(
+                &scene,
+                nodes.as_mut_ptr(),
+                3,
+                indices.as_mut_ptr(),
+                2,
+                &mut used,
+            )
+        };
+        assert_eq!(r, EMBER_OK);
+        EmberScene {
+            bvh_nodes: nodes.as_ptr(),
+            bvh_node_count: used,
+            bvh_indices: indices.as_ptr(),
+            ..scene
+        }
+    }
+
+    // Version 1 of the structs, as a program compiled against the version 1 header lays them
+    // out (kernel/include/ember.h before `struct_size`).
+    #[repr(C)]
+    struct MaterialV1 {
+        kind: u32,
+        kd: [f32; 3],
+        ks: [f32; 3],
+        ns: f32,
+        ke: [f32; 3],
+    }
+
+    #[repr(C)]
+    struct SceneV1 {
+        positions: *const [f32; 3],
+        normals: *const [f32; 3],
+        vertex_count: u32,
+        triangles: *const [u32; 3],
+        triangle_materials: *const u32,
+        triangle_count: u32,
+        materials: *const MaterialV1,
+        material_count: u32,
+        emitter_triangles: *const u32,
+        emitter_cdf: *const f32,
+        emitter_count: u32,
+        bvh_nodes: *const EmberBvhNode,
+        bvh_node_count: u32,
+        bvh_indices: *const u32,
+    }
+
+    #[repr(C)]
+    struct CameraV1 {
+        eye: [f32; 3],
+        at: [f32; 3],
+        up: [f32; 3],
+        fov_degrees: f32,
+        width: u32,
+        height: u32,
+    }
+
+    #[repr(C)]
+    struct SettingsV1 {
+        integrator: u32,
+        max_depth: i32,
+        rr_depth: i32,
+        rr_prob: f32,
+        spp: u32,
+        bake_estimator: u32,
+        seed: u64,
+    }
+
+    #[repr(C)]
+    struct BakePointV1 {
+        p: [f32; 3],
+        n: [f32; 3],
+        material: u32,
+        key: u32,
+    }
+
+    #[test]
+    fn old_layout_records_are_refused_not_misread() {
+        assert_eq!((ember_abi_version(), EMBER_ABI_VERSION), (2, 2));
+        let v1_materials = [
+            MaterialV1 {
+                kind: EMBER_MATERIAL_DIFFUSE,
+                kd: [0.5; 3],
+                ks: [0.0; 3],
+                ns: 1.0,
+                ke: [0.0; 3],
+            },
+            MaterialV1 {
+                kind: EMBER_MATERIAL_PHONG,
+                kd: [0.2; 3],
+                ks: [0.5; 3],
+                ns: 10.0,
+                ke: [1.0, 2.0, 3.0],
+            },
+        ];
+        let (mut nodes, mut indices) = ([EmberBvhNode::default(); 3], [0u32; 2]);
+        let good = with_bvh(geometry_only(), &mut nodes, &mut indices);
+        assert_eq!(unsafe { ember_scene_check(&good) }, EMBER_OK);
+
+        // Version 1 materials in a version 2 scene: `kind` (0, 1) is read as the size, and
+        // nothing past the first record's first field is read.
+        let old_materials = EmberScene {
+            materials: v1_materials.as_ptr().cast::<EmberMaterial>(),
+            ..good
+        };
+        let mut count = 77;
+        let calls = unsafe {
+            [
+                ember_scene_check(&old_materials),
+                ember_build_emitters(&old_materials, null_mut(), null_mut(), 0, &mut count),
+            ]
+        };
+        assert_eq!(calls, [EMBER_ERROR_ABI; 2]);
+        assert_eq!(count, 77, "a refused call writes nothing");
+        // The BVH builder reads no materials.
+        let mut out_nodes = [EmberBvhNode::default(); 3];
+        let mut out_indices = [0u32; 2];
+        let r = unsafe {
+            ember_build_bvh(
+                &old_materials,
+                out_nodes.as_mut_ptr(),
+                3,
+                out_indices.as_mut_ptr(),
+                2,
+                &mut count,
+            )
+        };
+        assert_eq!((r, out_nodes), (EMBER_OK, nodes));
+        // A record with a wrong size after a right one, a size of 0 (a zeroed record), a
+        // larger size (a later version).
+        for size in [0, 44, size_of::<EmberMaterial>() as u32 + 4] {
+            let mut mixed = MATERIALS;
+            mixed[1].struct_size = size;
+            let scene = EmberScene {
+                materials: mixed.as_ptr(),
+                ..good
+            };
+            assert_eq!(
+                unsafe { ember_scene_check(&scene) },
+                EMBER_ERROR_ABI,
+                "{size}"
+            );
+        }
+
+        // A version 1 scene: its first 4 bytes are (the low half of) the positions pointer.
+        let v1_scene = SceneV1 {
+            positions: POSITIONS.as_ptr(),
+            normals: NORMALS.as_ptr(),
+            vertex_count: 4,
+            triangles: TRIANGLES.as_ptr(),
+            triangle_materials: IDS.as_ptr(),
+            triangle_count: 2,
+            materials: v1_materials.as_ptr(),
+            material_count: 2,
+            emitter_triangles: null(),
+            emitter_cdf: null(),
+            emitter_count: 0,
+            bvh_nodes: nodes.as_ptr(),
+            bvh_node_count: good.bvh_node_count,
+            bvh_indices: indices.as_ptr(),
+        };
+        assert_ne!(
+            v1_scene.positions as usize as u32,
+            size_of::<EmberScene>() as u32,
+            "the one address in 2^29 that passes for a size"
+        );
+        let old_scene = core::ptr::addr_of!(v1_scene).cast::<EmberScene>();
+        let zeroed = EmberScene {
+            struct_size: 0,
+            ..good
+        };
+        for scene in [old_scene, core::ptr::addr_of!(zeroed)] {
+            assert_eq!(unsafe { ember_scene_check(scene) }, EMBER_ERROR_ABI);
+            let r = unsafe {
+                ember_build_bvh(
+                    scene,
+                    out_nodes.as_mut_ptr(),
+                    3,
+                    out_indices.as_mut_ptr(),
+                    2,
+                    null_mut(),
+                )
+            };
+            assert_eq!(r, EMBER_ERROR_ABI);
+        }
+
+        // Version 1 camera, settings and bake points with a version 2 scene.
+        let camera = EmberCamera {
+            struct_size: size_of::<EmberCamera>() as u32,
+            eye: [0.0, 2.0, 3.0],
+            at: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_degrees: 40.0,
+            width: 2,
+            height: 2,
+        };
+        let v1_camera = CameraV1 {
+            eye: camera.eye,
+            at: camera.at,
+            up: camera.up,
+            fov_degrees: 40.0,
+            width: 2,
+            height: 2,
+        };
+        let settings = EmberSettings {
+            struct_size: size_of::<EmberSettings>() as u32,
+            integrator: EMBER_INTEGRATOR_PATH_MIS,
+            max_depth: 2,
+            rr_depth: 5,
+            rr_prob: 0.95,
+            spp: 1,
+            bake_estimator: EMBER_BAKE_MIS,
+            seed: 7,
+        };
+        let v1_settings = SettingsV1 {
+            integrator: EMBER_INTEGRATOR_PATH_MIS,
+            max_depth: 2,
+            rr_depth: 5,
+            rr_prob: 0.95,
+            spp: 1,
+            bake_estimator: EMBER_BAKE_MIS,
+            seed: 7,
+        };
+        let point = EmberBakePoint {
+            struct_size: size_of::<EmberBakePoint>() as u32,
+            p: [0.0; 3],
+            n: [0.0, 1.0, 0.0],
+            uv: [0.0; 2],
+            material: 0,
+            key: 0,
+        };
+        let v1_points = [
+            BakePointV1 {
+                p: [0.0; 3],
+                n: [0.0, 1.0, 0.0],
+                material: 0,
+                key: 0,
+            },
+            BakePointV1 {
+                p: [0.5, 0.0, 0.5],
+                n: [0.0, 1.0, 0.0],
+                material: 1,
+                key: 1,
+            },
+        ];
+        let mut out = [-1.0f32; 12];
+        let rendered =
+            unsafe { ember_render_tile(&good, &camera, &settings, 0, 0, 2, 2, out.as_mut_ptr()) };
+        assert_eq!(rendered, EMBER_OK);
+        out = [-1.0; 12];
+        let v1_camera = core::ptr::addr_of!(v1_camera).cast::<EmberCamera>();
+        let v1_settings = core::ptr::addr_of!(v1_settings).cast::<EmberSettings>();
+        let calls = unsafe {
+            [
+                ember_render_tile(&good, v1_camera, &settings, 0, 0, 2, 2, out.as_mut_ptr()),
+                ember_render_tile(&good, &camera, v1_settings, 0, 0, 2, 2, out.as_mut_ptr()),
+                ember_bake_vertices(&good, v1_settings, &point, 1, out.as_mut_ptr()),
+                ember_bake_vertices(
+                    &good,
+                    &settings,
+                    v1_points.as_ptr().cast::<EmberBakePoint>(),
+                    2,
+                    out.as_mut_ptr(),
+                ),
+            ]
+        };
+        assert_eq!(calls, [EMBER_ERROR_ABI; 4]);
+        assert_eq!(out, [-1.0; 12], "a refused call writes nothing");
+        let baked = unsafe { ember_bake_vertices(&good, &settings, &point, 1, out.as_mut_ptr()) };
+        assert_eq!(baked, EMBER_OK);
+    }
+
+    #[test]
+    fn conductor_and_dielectric_fields_are_checked() {
+        let (mut nodes, mut indices) = ([EmberBvhNode::default(); 3], [0u32; 2]);
+        let good = with_bvh(geometry_only(), &mut nodes, &mut indices);
+        let conductor = EmberMaterial {
+            kind: EMBER_MATERIAL_CONDUCTOR,
+            ks: [0.9, 0.6, 0.3],
+            alpha: 0.2,
+            ..MATERIALS[0]
+        };
+        let dielectric = EmberMaterial {
+            kind: EMBER_MATERIAL_DIELECTRIC,
+            ior: 1.5,
+            tf: [0.9; 3],
+            alpha: 0.0,
+            ..MATERIALS[0]
+        };
+        let check = |m: EmberMaterial| {
+            let materials = [m, MATERIALS[1]];
+            let scene = EmberScene {
+                materials: materials.as_ptr(),
+                ..good
+            };
+            unsafe { ember_scene_check(&scene) }
+        };
+        assert_eq!(check(conductor), EMBER_OK);
+        assert_eq!(check(dielectric), EMBER_OK);
+        // A mirror, index-matched glass.
+        assert_eq!(
+            check(EmberMaterial {
+                alpha: 0.0,
+                ..conductor
+            }),
+            EMBER_OK
+        );
+        assert_eq!(
+            check(EmberMaterial {
+                ior: 1.0,
+                ..dielectric
+            }),
+            EMBER_OK
+        );
+        // Fields a kind does not read are not checked: a dielectric reads no kd, ks or
+        // texture id, a diffuse material no ior or alpha.
+        let ignored = EmberMaterial {
+            kd: [f32::NAN; 3],
+            ks: [-1.0; 3],
+            kd_texture: 9,
+            ks_texture: 9,
+            ns: -1.0,
+            ..dielectric
+        };
+        assert_eq!(check(ignored), EMBER_OK);
+        let ignored = EmberMaterial {
+            ior: 0.0,
+            alpha: f32::NAN,
+            tf: [-1.0; 3],
+            ..MATERIALS[0]
+        };
+        assert_eq!(check(ignored), EMBER_OK);
+        let bad = [
+            EmberMaterial {
+                alpha: -0.1,
+                ..conductor
+            },
+            EmberMaterial {
+                alpha: f32::NAN,
+                ..conductor
+            },
+            EmberMaterial {
+                alpha: f32::INFINITY,
+                ..conductor
+            },
+            EmberMaterial {
+                ks: [0.5, -0.5, 0.5],
+                ..conductor
+            },
+            EmberMaterial {
+                ks_texture: 0,
+                ..conductor
+            },
+            EmberMaterial {
+                ior: 0.0,
+                ..dielectric
+            },
+            EmberMaterial {
+                ior: -1.5,
+                ..dielectric
+            },
+            EmberMaterial {
+                ior: f32::NAN,
+                ..dielectric
+            },
+            EmberMaterial {
+                ior: f32::INFINITY,
+                ..dielectric
+            },
+            EmberMaterial {
+                tf: [1.0, f32::NAN, 1.0],
+                ..dielectric
+            },
+            EmberMaterial {
+                alpha: -1.0,
+                ..dielectric
+            },
+            EmberMaterial {
+                ke: [-1.0; 3],
+                ..dielectric
+            },
+            EmberMaterial {
+                kind: 5,
+                ..dielectric
+            },
+        ];
+        for m in bad {
+            assert_eq!(check(m), EMBER_ERROR_INVALID_SCENE, "{m:?}");
+        }
+    }
+
+    #[test]
+    fn textures_are_checked_before_use() {
+        let (mut nodes, mut indices) = ([EmberBvhNode::default(); 3], [0u32; 2]);
+        let texels = [[0.1f32; 3], [0.9; 3], [0.5; 3], [0.0; 3], [1.0; 3]];
+        let textures = [EmberTexture {
+            width: 2,
+            height: 2,
+            first_texel: 1,
+            uv_scale: [1.0; 2],
+            uv_offset: [0.0; 2],
+        }];
+        let materials = [
+            EmberMaterial {
+                kd_texture: 0,
+                ..MATERIALS[0]
+            },
+            MATERIALS[1],
+        ];
+        let good = with_bvh(
+            EmberScene {
+                uvs: UVS.as_ptr(),
+                materials: materials.as_ptr(),
+                textures: textures.as_ptr(),
+                texture_count: 1,
+                texels: texels.as_ptr(),
+                texel_count: 5,
+                ..geometry_only()
+            },
+            &mut nodes,
+            &mut indices,
+        );
+        assert_eq!(unsafe { ember_scene_check(&good) }, EMBER_OK);
+        let check = |s: EmberScene| unsafe { ember_scene_check(&s) };
+        assert_eq!(
+            check(EmberScene {
+                uvs: null(),
+                ..good
+            }),
+            EMBER_ERROR_NULL_POINTER
+        );
+        assert_eq!(
+            check(EmberScene {
+                textures: null(),
+                ..good
+            }),
+            EMBER_ERROR_NULL_POINTER
+        );
+        assert_eq!(
+            check(EmberScene {
+                texels: null(),
+                ..good
+            }),
+            EMBER_ERROR_NULL_POINTER
+        );
+        // Material 0 refers to a missing texture.
+        assert_eq!(
+            check(EmberScene {
+                texture_count: 0,
+                ..good
+            }),
+            EMBER_ERROR_INVALID_SCENE
+        );
+        // No material is textured: the coordinates may be null.
+        let untextured = EmberScene {
+            uvs: null(),
+            materials: MATERIALS.as_ptr(),
+            ..good
+        };
+        assert_eq!(check(untextured), EMBER_OK);
+        // Texels past the end, none, an overflowing size, a bad coordinate transform: each
+        // refused, also for a texture no material reads.
+        let bad_textures = [
+            EmberTexture {
+                first_texel: 2,
+                ..textures[0]
+            },
+            EmberTexture {
+                width: 0,
+                ..textures[0]
+            },
+            EmberTexture {
+                width: u32::MAX,
+                height: u32::MAX,
+                first_texel: u32::MAX,
+                ..textures[0]
+            },
+            EmberTexture {
+                uv_scale: [1.0, f32::INFINITY],
+                ..textures[0]
+            },
+            EmberTexture {
+                uv_offset: [f32::NAN, 0.0],
+                ..textures[0]
+            },
+        ];
+        for t in bad_textures {
+            for (untextured, list) in [(false, [t, textures[0]]), (true, [textures[0], t])] {
+                let scene = EmberScene {
+                    textures: list.as_ptr(),
+                    texture_count: 2,
+                    ..good
+                };
+                assert_eq!(
+                    check(scene),
+                    EMBER_ERROR_INVALID_SCENE,
+                    "{t:?} {untextured}"
+                );
+            }
+        }
+        for bad in [
+            [-0.1, 0.0, 0.0],
+            [0.0, f32::NAN, 0.0],
+            [0.0, 0.0, f32::INFINITY],
+        ] {
+            let mut texels = texels;
+            texels[4] = bad;
+            let scene = EmberScene {
+                texels: texels.as_ptr(),
+                ..good
+            };
+            assert_eq!(check(scene), EMBER_ERROR_INVALID_SCENE, "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn textured_phong_weights_are_the_kernels() {
+        // More textures than the statistics cache holds, each read by two Phong materials.
+        let n = TexelStatsCache::CAPACITY + 44;
+        let texels: std::vec::Vec<[f32; 3]> = (0..2 * n)
+            .map(|i| {
+                [
+                    0.1 + 0.8 * (i % 7) as f32 / 7.0,
+                    0.3,
+                    0.01 * (i % 50) as f32,
+                ]
+            })
+            .collect();
+        let textures: std::vec::Vec<EmberTexture> = (0..n)
+            .map(|i| EmberTexture {
+                width: 2,
+                height: 1,
+                first_texel: 2 * i as u32,
+                uv_scale: [1.0; 2],
+                uv_offset: [0.0; 2],
+            })
+            .collect();
+        let materials: std::vec::Vec<EmberMaterial> = (0..2 * n)
+            .map(|i| EmberMaterial {
+                kind: [EMBER_MATERIAL_PHONG, EMBER_MATERIAL_MIXTURE][i % 2],
+                kd_texture: (i % n) as u32,
+                ks: [0.4, 0.5, 0.6],
+                ks_texture: if i % 3 == 0 {
+                    EMBER_NO_TEXTURE
+                } else {
+                    ((i * 7) % n) as u32
+                },
+                ns: 12.0,
+                ..MATERIALS[0]
+            })
+            .collect();
+        let (mut nodes, mut indices) = ([EmberBvhNode::default(); 3], [0u32; 2]);
+        let scene = with_bvh(
+            EmberScene {
+                uvs: UVS.as_ptr(),
+                materials: materials.as_ptr(),
+                material_count: materials.len() as u32,
+                textures: textures.as_ptr(),
+                texture_count: n as u32,
+                texels: texels.as_ptr(),
+                texel_count: texels.len() as u32,
+                ..geometry_only()
+            },
+            &mut nodes,
+            &mut indices,
+        );
+        let mut table = [BLACK; EMBER_MAX_MATERIALS as usize];
+        let view = unsafe { scene_view(&scene, &mut table) }.unwrap();
+        let mut clamped = 0;
+        for (i, (m, c)) in view.materials.iter().zip(&materials).enumerate() {
+            let reflectance = |v: [f32; 3], t: u32| {
+                if t == EMBER_NO_TEXTURE {
+                    Reflectance::constant(Rgb::from_array(v))
+                } else {
+                    Reflectance::texture(t)
+                }
+            };
+            let expect = PhongParams::new(
+                reflectance(c.kd, c.kd_texture),
+                reflectance(c.ks, c.ks_texture),
+                c.ns,
+                &view.textures,
+            )
+            .unwrap();
+            let p = match m.surface {
+                Surface::Phong(p) | Surface::Mixture(p) => p,
+                _ => panic!("material {i}: {m:?}"),
+            };
+            assert_eq!(p, expect, "material {i}");
+            clamped += usize::from(p.scale < 1.0);
+        }
+        assert!(clamped > 0 && clamped < materials.len(), "{clamped}");
     }
 }

@@ -5,7 +5,7 @@
 //! textures never compute texture coordinates.
 
 use crate::bsdf::{Bsdf, Conductor, Dielectric, Diffuse, Phong};
-use crate::texture::{Textures, NO_TEXTURE};
+use crate::texture::{texel_stats, Textures, NO_TEXTURE};
 use crate::Rgb;
 use glam::Vec2;
 
@@ -54,6 +54,18 @@ impl<F: FnOnce() -> Vec2> Lazy<F> {
         Self {
             f: Some(f),
             v: Vec2::ZERO,
+        }
+    }
+
+    /// Per-channel maximum and average over the surface: the constant itself, or
+    /// [`texel_stats`] of the texture's texels; `None` for a texture that `textures` does not
+    /// hold ([`Textures::texels_of`]).
+    #[must_use]
+    pub fn stats(&self, textures: &Textures<'_>) -> Option<(Rgb, Rgb)> {
+        if self.is_textured() {
+            texel_stats(textures.texels_of(self.texture)?)
+        } else {
+            Some((self.value, self.value))
         }
     }
 
@@ -222,6 +234,45 @@ impl PhongParams {
         }
     }
 
+    /// Reflectances that may be textures: the clamp and weight from their maxima and averages
+    /// over `textures` ([`Reflectance::stats`], [`Phong::weights`]); `None` when a texture is
+    /// missing from `textures`. Equals [`Self::constant`] for constant reflectances.
+    #[must_use]
+    pub fn new(
+        kd: Reflectance,
+        ks: Reflectance,
+        exponent: f32,
+        textures: &Textures<'_>,
+    ) -> Option<Self> {
+        Some(Self::from_stats(
+            kd,
+            ks,
+            exponent,
+            kd.stats(textures)?,
+            ks.stats(textures)?,
+        ))
+    }
+
+    /// As [`Self::new`] with the `(maximum, average)` of each reflectance already computed
+    /// (hosts that share one texture among many materials compute its statistics once).
+    #[must_use]
+    pub fn from_stats(
+        kd: Reflectance,
+        ks: Reflectance,
+        exponent: f32,
+        (kd_max, kd_avg): (Rgb, Rgb),
+        (ks_max, ks_avg): (Rgb, Rgb),
+    ) -> Self {
+        let (scale, specular_weight) = Phong::weights(kd_max, ks_max, kd_avg, ks_avg);
+        Self {
+            kd,
+            ks,
+            exponent: exponent.max(0.0),
+            scale,
+            specular_weight,
+        }
+    }
+
     #[inline]
     fn at(&self, reflectance: &mut impl FnMut(Reflectance) -> Rgb) -> Phong {
         Phong::with_weights(
@@ -231,5 +282,44 @@ impl PhongParams {
             self.scale,
             self.specular_weight,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::Texture;
+
+    #[test]
+    fn phong_weights_come_from_the_texels() {
+        let (kd, ks) = (Rgb::new(0.2, 0.5, 0.1), Rgb::splat(0.3));
+        let constant = PhongParams::constant(kd, ks, 20.0);
+        let none = Textures::NONE;
+        let same = PhongParams::new(
+            Reflectance::constant(kd),
+            Reflectance::constant(ks),
+            20.0,
+            &none,
+        );
+        assert_eq!(same, Some(constant));
+        // Texels whose maximum (0.9 + 0.3 > 1) clamps while their average would not.
+        let texels = [Rgb::splat(0.9), Rgb::splat(0.1), Rgb::ZERO, Rgb::splat(0.2)];
+        let textures = [Texture::new(2, 2, 0)];
+        let t = Textures {
+            uvs: &[],
+            textures: &textures,
+            texels: &texels,
+        };
+        let p =
+            PhongParams::new(Reflectance::texture(0), Reflectance::constant(ks), -1.0, &t).unwrap();
+        let (scale, weight) = Phong::weights(Rgb::splat(0.9), ks, Rgb::splat(0.3), ks);
+        assert_eq!(
+            (p.scale, p.specular_weight, p.exponent),
+            (scale, weight, 0.0)
+        );
+        assert!((scale - 0.99 / 1.2).abs() < 1e-6);
+        assert!(
+            PhongParams::new(Reflectance::texture(1), Reflectance::constant(ks), 1.0, &t).is_none()
+        );
     }
 }

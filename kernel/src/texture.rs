@@ -10,6 +10,9 @@ pub const NO_TEXTURE: u32 = u32::MAX;
 /// first** (TinyRender flips rows at load so that `v = 0` is the bottom of the picture), each
 /// row left to right. Texture coordinates are transformed by `uv·uv_scale + uv_offset` (the
 /// MTL map options `-s` and `-o`) before the lookup.
+///
+/// `#[repr(C)]`: the C API reads its callers' `EmberTexture` arrays in place as this type.
+#[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Texture {
     pub width: u32,
@@ -87,6 +90,18 @@ impl Textures<'_> {
     }
 }
 
+impl<'a> Textures<'a> {
+    /// The texels of texture `id`; `None` when there is no such texture or its texels are
+    /// empty or lie outside `texels` (what [`crate::scene::SceneView::validate`] refuses).
+    #[must_use]
+    pub fn texels_of(&self, id: u32) -> Option<&'a [Rgb]> {
+        let t = self.textures.get(id as usize)?;
+        let start = t.first_texel as usize;
+        let texels = self.texels.get(start..start.checked_add(t.len())?)?;
+        (!texels.is_empty()).then_some(texels)
+    }
+}
+
 /// Per-channel maximum and average of a texture's texels (TinyRender's `getMax` and
 /// `getAverage`, which Phong's energy clamp and lobe weight are derived from). The sum is in
 /// f64 so that it does not depend on the texture's size; `None` for an empty slice.
@@ -134,5 +149,31 @@ mod tests {
         assert_eq!(max, Rgb::new(1.0, 0.5, 0.5));
         assert_eq!(avg, Rgb::new(0.5, 0.25, 0.5));
         assert!(texel_stats(&[]).is_none());
+    }
+
+    #[test]
+    fn texels_of_checks_ids_and_ranges() {
+        let texels = [Rgb::ONE; 6];
+        let textures = [
+            Texture::new(2, 2, 2),
+            Texture::new(2, 2, 3),
+            Texture::new(0, 1, 0),
+        ];
+        let t = Textures {
+            uvs: &[],
+            textures: &textures,
+            texels: &texels,
+        };
+        assert_eq!(t.texels_of(0).map(<[Rgb]>::len), Some(4));
+        assert!(t.texels_of(1).is_none(), "one texel past the end");
+        assert!(t.texels_of(2).is_none(), "empty");
+        assert!(t.texels_of(3).is_none(), "no such texture");
+        let far = [Texture::new(u32::MAX, u32::MAX, u32::MAX)];
+        assert!(Textures {
+            textures: &far,
+            ..t
+        }
+        .texels_of(0)
+        .is_none());
     }
 }

@@ -1,12 +1,15 @@
 /*
  * A C program that embeds ember through its C API (kernel/include/ember.h, libember_capi.a).
- * It loads nothing from disk: it builds the small Cornell box of the determinism checks
- * (tests/determinism/src/lib.rs, same literal quads and materials) in arrays, builds the BVH
- * and the emitter table into its own buffers, renders the box with each path integrator from
- * two threads (pthreads, the top and bottom halves, each in 8x8 tiles), bakes a few points,
- * checks that bad input gets error codes, and prints the FNV-1a hashes of the pixels and of the
- * baked values. With an argument it also writes every array and result to that file
- * (raw little-endian), which tests/tests/capi.rs compares bit for bit with the Rust API's.
+ * It loads nothing from disk: it builds the Cornell box of the determinism checks
+ * (tests/determinism/src/lib.rs, same literal quads, materials, texels and texture
+ * coordinates: diffuse, Phong and mixture boxes, a mirror, a rough metal panel, a glass box
+ * with a frosted face, a textured floor and a textured Phong picture) in arrays, builds the
+ * BVH and the emitter table into its own buffers, renders the box with each path integrator
+ * from two threads (pthreads, the top and bottom halves, each in 8x8 tiles), bakes a few
+ * points, checks the ABI version and that bad input (old-layout records included) gets error
+ * codes, and prints the FNV-1a hashes of the pixels and of the baked values. With an argument
+ * it also writes every array and result to that file (raw little-endian), which
+ * tests/tests/capi.rs compares bit for bit with the Rust API's.
  *
  *   cc -std=c11 -O2 -pthread -I kernel/include tests/capi/cornell.c libember_capi.a \
  *      -lpthread -ldl -lm -o cornell && ./cornell [OUT.bin]
@@ -21,10 +24,13 @@
 #define WIDTH 32
 #define HEIGHT 32
 #define TILE 8
-#define NQUADS 16
+#define NQUADS 24
 #define NVERTICES (4 * NQUADS)
 #define NTRIANGLES (2 * NQUADS)
-#define NPOINTS 8
+#define NMATERIALS 12
+#define NTEXTURES 3
+#define NTEXELS 36
+#define NPOINTS 14
 
 typedef struct Quad {
     float corners[4][3];
@@ -32,9 +38,10 @@ typedef struct Quad {
     uint32_t material;
 } Quad;
 
-/* The room, the light, a short mixture box and a tall Phong box (tests/determinism). */
+/* The room with a textured floor, the light, a short mixture box, a tall Phong box, a mirror,
+ * a rough metal panel, a textured Phong picture and a glass box (tests/determinism). */
 static const Quad QUADS[NQUADS] = {
-    {{{-1.0f, 0.0f, 1.0f}, {1.0f, 0.0f, 1.0f}, {1.0f, 0.0f, -1.0f}, {-1.0f, 0.0f, -1.0f}}, {0.0f, 1.0f, 0.0f}, 0},
+    {{{-1.0f, 0.0f, 1.0f}, {1.0f, 0.0f, 1.0f}, {1.0f, 0.0f, -1.0f}, {-1.0f, 0.0f, -1.0f}}, {0.0f, 1.0f, 0.0f}, 6},
     {{{-1.0f, 2.0f, -1.0f}, {1.0f, 2.0f, -1.0f}, {1.0f, 2.0f, 1.0f}, {-1.0f, 2.0f, 1.0f}}, {0.0f, -1.0f, 0.0f}, 0},
     {{{-1.0f, 0.0f, -1.0f}, {1.0f, 0.0f, -1.0f}, {1.0f, 2.0f, -1.0f}, {-1.0f, 2.0f, -1.0f}}, {0.0f, 0.0f, 1.0f}, 0},
     {{{-1.0f, 0.0f, 1.0f}, {-1.0f, 0.0f, -1.0f}, {-1.0f, 2.0f, -1.0f}, {-1.0f, 2.0f, 1.0f}}, {1.0f, 0.0f, 0.0f}, 1},
@@ -50,38 +57,127 @@ static const Quad QUADS[NQUADS] = {
     {{{0.7f, 0.0f, -0.7f}, {0.1f, 0.0f, -0.7f}, {0.1f, 1.2f, -0.7f}, {0.7f, 1.2f, -0.7f}}, {0.0f, 0.0f, -1.0f}, 4},
     {{{0.1f, 0.0f, -0.7f}, {0.1f, 0.0f, -0.1f}, {0.1f, 1.2f, -0.1f}, {0.1f, 1.2f, -0.7f}}, {-1.0f, 0.0f, 0.0f}, 4},
     {{{0.7f, 0.0f, -0.1f}, {0.7f, 0.0f, -0.7f}, {0.7f, 1.2f, -0.7f}, {0.7f, 1.2f, -0.1f}}, {1.0f, 0.0f, 0.0f}, 4},
+    {{{-0.99f, 0.7f, 0.2f}, {-0.99f, 0.7f, -0.8f}, {-0.99f, 1.7f, -0.8f}, {-0.99f, 1.7f, 0.2f}}, {1.0f, 0.0f, 0.0f}, 7},
+    {{{0.99f, 0.7f, -0.3f}, {0.99f, 0.7f, 0.7f}, {0.99f, 1.5f, 0.7f}, {0.99f, 1.5f, -0.3f}}, {-1.0f, 0.0f, 0.0f}, 8},
+    {{{0.1f, 1.3f, -0.99f}, {0.9f, 1.3f, -0.99f}, {0.9f, 1.9f, -0.99f}, {0.1f, 1.9f, -0.99f}}, {0.0f, 0.0f, 1.0f}, 11},
+    {{{-0.05f, 0.45f, 0.65f}, {0.4f, 0.45f, 0.65f}, {0.4f, 0.45f, 0.25f}, {-0.05f, 0.45f, 0.25f}}, {0.0f, 1.0f, 0.0f}, 9},
+    {{{-0.05f, 0.0f, 0.65f}, {0.4f, 0.0f, 0.65f}, {0.4f, 0.45f, 0.65f}, {-0.05f, 0.45f, 0.65f}}, {0.0f, 0.0f, 1.0f}, 10},
+    {{{0.4f, 0.0f, 0.25f}, {-0.05f, 0.0f, 0.25f}, {-0.05f, 0.45f, 0.25f}, {0.4f, 0.45f, 0.25f}}, {0.0f, 0.0f, -1.0f}, 9},
+    {{{-0.05f, 0.0f, 0.25f}, {-0.05f, 0.0f, 0.65f}, {-0.05f, 0.45f, 0.65f}, {-0.05f, 0.45f, 0.25f}}, {-1.0f, 0.0f, 0.0f}, 9},
+    {{{0.4f, 0.0f, 0.65f}, {0.4f, 0.0f, 0.25f}, {0.4f, 0.45f, 0.25f}, {0.4f, 0.45f, 0.65f}}, {1.0f, 0.0f, 0.0f}, 9},
 };
 
-static const EmberMaterial MATERIALS[6] = {
-    {EMBER_MATERIAL_DIFFUSE, {0.725f, 0.71f, 0.68f}, {0.0f, 0.0f, 0.0f}, 1.0f, {0.0f, 0.0f, 0.0f}},
-    {EMBER_MATERIAL_DIFFUSE, {0.63f, 0.065f, 0.05f}, {0.0f, 0.0f, 0.0f}, 1.0f, {0.0f, 0.0f, 0.0f}},
-    {EMBER_MATERIAL_DIFFUSE, {0.14f, 0.45f, 0.091f}, {0.0f, 0.0f, 0.0f}, 1.0f, {0.0f, 0.0f, 0.0f}},
-    {EMBER_MATERIAL_DIFFUSE, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f, {17.0f, 12.0f, 4.0f}},
-    {EMBER_MATERIAL_PHONG, {0.1f, 0.1f, 0.1f}, {0.7f, 0.7f, 0.7f}, 40.0f, {0.0f, 0.0f, 0.0f}},
-    {EMBER_MATERIAL_MIXTURE, {0.5f, 0.4f, 0.3f}, {0.3f, 0.3f, 0.3f}, 15.0f, {0.0f, 0.0f, 0.0f}},
+/* Texture coordinates of every quad's corners, in corner order. */
+static const float QUAD_UVS[4][2] = {{0.0f, 0.0f}, {1.0f, 0.0f}, {1.0f, 1.0f}, {0.0f, 1.0f}};
+
+#define NONE EMBER_NO_TEXTURE
+#define MAT sizeof(EmberMaterial)
+/* struct_size, kind, kd, kd_texture, ks, ks_texture, ns, ke, ior, tf, alpha (roughness alpha,
+ * not MTL Pr). Walls, light, Phong box, mixture box, textured floor, mirror, rough metal,
+ * smooth glass, frosted glass, textured Phong picture. */
+static const EmberMaterial MATERIALS[NMATERIALS] = {
+    {MAT, EMBER_MATERIAL_DIFFUSE, {0.725f, 0.71f, 0.68f}, NONE, {0.0f, 0.0f, 0.0f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_DIFFUSE, {0.63f, 0.065f, 0.05f}, NONE, {0.0f, 0.0f, 0.0f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_DIFFUSE, {0.14f, 0.45f, 0.091f}, NONE, {0.0f, 0.0f, 0.0f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_DIFFUSE, {0.0f, 0.0f, 0.0f}, NONE, {0.0f, 0.0f, 0.0f}, NONE, 1.0f, {17.0f, 12.0f, 4.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_PHONG, {0.1f, 0.1f, 0.1f}, NONE, {0.7f, 0.7f, 0.7f}, NONE, 40.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_MIXTURE, {0.5f, 0.4f, 0.3f}, NONE, {0.3f, 0.3f, 0.3f}, NONE, 15.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_DIFFUSE, {0.0f, 0.0f, 0.0f}, 0, {0.0f, 0.0f, 0.0f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_CONDUCTOR, {0.0f, 0.0f, 0.0f}, NONE, {0.95f, 0.93f, 0.88f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_CONDUCTOR, {0.0f, 0.0f, 0.0f}, NONE, {0.9f, 0.6f, 0.35f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.2f},
+    {MAT, EMBER_MATERIAL_DIELECTRIC, {0.0f, 0.0f, 0.0f}, NONE, {0.0f, 0.0f, 0.0f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.5f, {0.95f, 0.97f, 1.0f}, 0.0f},
+    {MAT, EMBER_MATERIAL_DIELECTRIC, {0.0f, 0.0f, 0.0f}, NONE, {0.0f, 0.0f, 0.0f}, NONE, 1.0f, {0.0f, 0.0f, 0.0f}, 1.5f, {1.0f, 1.0f, 1.0f}, 0.15f},
+    {MAT, EMBER_MATERIAL_PHONG, {0.0f, 0.0f, 0.0f}, 1, {0.0f, 0.0f, 0.0f}, 2, 30.0f, {0.0f, 0.0f, 0.0f}, 1.0f, {1.0f, 1.0f, 1.0f}, 0.0f},
 };
 
+/* Linear texels, each texture bottom row first. */
+static const float TEXELS[NTEXELS][3] = {
+    /* Texture 0: 4x4. */
+    {0.8f, 0.78f, 0.74f},
+    {0.25f, 0.25f, 0.3f},
+    {0.8f, 0.78f, 0.74f},
+    {0.25f, 0.25f, 0.3f},
+    {0.25f, 0.25f, 0.3f},
+    {0.8f, 0.78f, 0.74f},
+    {0.25f, 0.25f, 0.3f},
+    {0.8f, 0.78f, 0.74f},
+    {0.8f, 0.78f, 0.74f},
+    {0.25f, 0.25f, 0.3f},
+    {0.8f, 0.78f, 0.74f},
+    {0.25f, 0.25f, 0.3f},
+    {0.25f, 0.25f, 0.3f},
+    {0.8f, 0.78f, 0.74f},
+    {0.25f, 0.25f, 0.3f},
+    {0.7f, 0.2f, 0.15f},
+    /* Texture 1: 4x4. */
+    {0.1f, 0.1f, 0.5f},
+    {0.2f, 0.1f, 0.45f},
+    {0.3f, 0.15f, 0.4f},
+    {0.4f, 0.2f, 0.35f},
+    {0.1f, 0.3f, 0.4f},
+    {0.2f, 0.35f, 0.35f},
+    {0.35f, 0.35f, 0.3f},
+    {0.5f, 0.4f, 0.25f},
+    {0.1f, 0.5f, 0.3f},
+    {0.25f, 0.55f, 0.25f},
+    {0.45f, 0.55f, 0.2f},
+    {0.65f, 0.55f, 0.15f},
+    {0.1f, 0.7f, 0.2f},
+    {0.3f, 0.7f, 0.15f},
+    {0.55f, 0.7f, 0.1f},
+    {0.8f, 0.7f, 0.05f},
+    /* Texture 2: 2x2. */
+    {0.6f, 0.6f, 0.6f},
+    {0.2f, 0.2f, 0.2f},
+    {0.4f, 0.3f, 0.2f},
+    {0.05f, 0.05f, 0.05f},
+};
+
+/* width, height, first_texel, uv_scale, uv_offset. */
+static const EmberTexture TEXTURES[NTEXTURES] = {
+    {4, 4, 0, {2.0f, 2.0f}, {0.125f, 0.0f}},
+    {4, 4, 16, {1.0f, 1.0f}, {0.0f, 0.0f}},
+    {2, 2, 32, {1.0f, 1.0f}, {0.0f, 0.0f}},
+};
+
+/* struct_size, p, n, uv, material, key. */
 static const EmberBakePoint POINTS[NPOINTS] = {
-    {{0.0f, 0.0f, 0.7f}, {0.0f, 1.0f, 0.0f}, 0, 0},
-    {{0.0f, 1.0f, -1.0f}, {0.0f, 0.0f, 1.0f}, 0, 1},
-    {{-1.0f, 1.0f, 0.0f}, {1.0f, 0.0f, 0.0f}, 1, 2},
-    {{1.0f, 1.0f, 0.0f}, {-1.0f, 0.0f, 0.0f}, 2, 3},
-    {{0.6f, 2.0f, 0.6f}, {0.0f, -1.0f, 0.0f}, 0, 4},
-    {{0.4f, 1.2f, -0.4f}, {0.0f, 1.0f, 0.0f}, 4, 5},
-    {{-0.45f, 0.6f, 0.1f}, {0.0f, 1.0f, 0.0f}, 5, 6},
-    {{-1.0f, 0.0f, -1.0f}, {0.0f, 1.0f, 0.0f}, 0, 7},
+    {sizeof(EmberBakePoint), {0.0f, 0.0f, 0.7f}, {0.0f, 1.0f, 0.0f}, {0.5f, 0.15f}, 6, 0},
+    {sizeof(EmberBakePoint), {0.0f, 1.0f, -1.0f}, {0.0f, 0.0f, 1.0f}, {0.0f, 0.0f}, 0, 1},
+    {sizeof(EmberBakePoint), {-1.0f, 0.4f, 0.6f}, {1.0f, 0.0f, 0.0f}, {0.0f, 0.0f}, 1, 2},
+    {sizeof(EmberBakePoint), {1.0f, 1.8f, -0.6f}, {-1.0f, 0.0f, 0.0f}, {0.0f, 0.0f}, 2, 3},
+    {sizeof(EmberBakePoint), {0.6f, 2.0f, 0.6f}, {0.0f, -1.0f, 0.0f}, {0.0f, 0.0f}, 0, 4},
+    {sizeof(EmberBakePoint), {0.4f, 1.2f, -0.4f}, {0.0f, 1.0f, 0.0f}, {0.0f, 0.0f}, 4, 5},
+    {sizeof(EmberBakePoint), {-0.45f, 0.6f, 0.1f}, {0.0f, 1.0f, 0.0f}, {0.0f, 0.0f}, 5, 6},
+    {sizeof(EmberBakePoint), {-1.0f, 0.0f, -1.0f}, {0.0f, 1.0f, 0.0f}, {0.0f, 1.0f}, 6, 7},
+    {sizeof(EmberBakePoint), {-0.99f, 1.2f, -0.3f}, {1.0f, 0.0f, 0.0f}, {0.5f, 0.5f}, 7, 8},
+    {sizeof(EmberBakePoint), {0.99f, 1.1f, 0.2f}, {-1.0f, 0.0f, 0.0f}, {0.5f, 0.5f}, 8, 9},
+    {sizeof(EmberBakePoint), {0.175f, 0.45f, 0.45f}, {0.0f, 1.0f, 0.0f}, {0.5f, 0.5f}, 9, 10},
+    {sizeof(EmberBakePoint), {0.175f, 0.2f, 0.65f}, {0.0f, 0.0f, 1.0f}, {0.5f, 0.5f}, 10, 11},
+    {sizeof(EmberBakePoint), {0.5f, 1.6f, -0.99f}, {0.0f, 0.0f, 1.0f}, {0.5f, 0.5f}, 11, 12},
+    {sizeof(EmberBakePoint), {0.6f, 0.0f, 0.4f}, {0.0f, 1.0f, 0.0f}, {0.8f, 0.3f}, 6, 13},
 };
 
 /* 0x656D626572: "ember", the command line's default seed. */
 #define SEED 0x656D626572ull
 
-static const EmberCamera CAMERA = {
-    {0.0f, 1.0f, 3.4f}, {0.0f, 1.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 40.0f, WIDTH, HEIGHT};
+static const EmberCamera CAMERA = {sizeof(EmberCamera), {0.0f, 1.0f, 3.4f}, {0.0f, 1.0f, 0.0f},
+                                   {0.0f, 1.0f, 0.0f}, 40.0f, WIDTH, HEIGHT};
 
 static float positions[NVERTICES][3];
 static float normals[NVERTICES][3];
+static float uvs[NVERTICES][2];
 static uint32_t triangles[NTRIANGLES][3];
 static uint32_t triangle_materials[NTRIANGLES];
+
+/* A material as a program compiled against the version 1 header laid it out. */
+typedef struct LegacyMaterial {
+    uint32_t kind;
+    float kd[3];
+    float ks[3];
+    float ns;
+    float ke[3];
+} LegacyMaterial;
 
 #define CHECK(call)                                                                         \
     do {                                                                                    \
@@ -156,10 +252,17 @@ static void write_all(FILE *f, const void *data, size_t bytes) {
 static void write_u32(FILE *f, uint32_t v) { write_all(f, &v, sizeof v); }
 
 int main(int argc, char **argv) {
+    /* The library must implement the header this program was compiled with. */
+    if (ember_abi_version() != EMBER_ABI_VERSION) {
+        fprintf(stderr, "cornell: ember ABI %u, header %u\n", (unsigned)ember_abi_version(),
+                (unsigned)EMBER_ABI_VERSION);
+        return 1;
+    }
     for (uint32_t q = 0; q < NQUADS; q++) {
         for (uint32_t c = 0; c < 4; c++) {
             memcpy(positions[4 * q + c], QUADS[q].corners[c], sizeof positions[0]);
             memcpy(normals[4 * q + c], QUADS[q].normal, sizeof normals[0]);
+            memcpy(uvs[4 * q + c], QUAD_UVS[c], sizeof uvs[0]);
         }
         uint32_t v = 4 * q;
         uint32_t t0[3] = {v, v + 1, v + 2}, t1[3] = {v, v + 2, v + 3};
@@ -170,14 +273,20 @@ int main(int argc, char **argv) {
 
     EmberScene scene;
     memset(&scene, 0, sizeof scene);
+    scene.struct_size = sizeof scene;
     scene.positions = (const float(*)[3])positions;
     scene.normals = (const float(*)[3])normals;
     scene.vertex_count = NVERTICES;
+    scene.uvs = (const float(*)[2])uvs;
     scene.triangles = (const uint32_t(*)[3])triangles;
     scene.triangle_materials = triangle_materials;
     scene.triangle_count = NTRIANGLES;
     scene.materials = MATERIALS;
-    scene.material_count = 6;
+    scene.material_count = NMATERIALS;
+    scene.textures = TEXTURES;
+    scene.texture_count = NTEXTURES;
+    scene.texels = TEXELS;
+    scene.texel_count = NTEXELS;
 
     /* The BVH, in buffers sized by the query. */
     uint32_t node_capacity = 0, index_capacity = 0, node_count = 0;
@@ -208,7 +317,8 @@ int main(int argc, char **argv) {
 
     /* Three renders, each by two threads. */
     static float images[3][WIDTH * HEIGHT * 3];
-    EmberSettings settings = {EMBER_INTEGRATOR_PATH_IMPLICIT, -1, 3, 0.9f, 4, EMBER_BAKE_MIS, SEED};
+    EmberSettings settings = {sizeof(EmberSettings), EMBER_INTEGRATOR_PATH_IMPLICIT, -1, 3, 0.9f,
+                              4, EMBER_BAKE_MIS, SEED};
     const uint32_t integrators[3] = {EMBER_INTEGRATOR_PATH_IMPLICIT,
                                      EMBER_INTEGRATOR_PATH_EXPLICIT, EMBER_INTEGRATOR_PATH_MIS};
     for (int k = 0; k < 3; k++) {
@@ -230,7 +340,8 @@ int main(int argc, char **argv) {
 
     /* The bake, both estimators; the points in two batches (keys make batching irrelevant). */
     static float bakes[2][NPOINTS * 3];
-    EmberSettings bake = {EMBER_INTEGRATOR_PATH_MIS, 5, 5, 0.95f, 16, EMBER_BAKE_MIS, SEED};
+    EmberSettings bake = {sizeof(EmberSettings), EMBER_INTEGRATOR_PATH_MIS, 5, 5, 0.95f, 16,
+                          EMBER_BAKE_MIS, SEED};
     const uint32_t estimators[2] = {EMBER_BAKE_MIS, EMBER_BAKE_EXPLICIT};
     for (int k = 0; k < 2; k++) {
         bake.bake_estimator = estimators[k];
@@ -250,7 +361,7 @@ int main(int argc, char **argv) {
     EXPECT(ember_render_tile(&scene, &CAMERA, &bad_settings, 0, 0, 1, 1, px),
            EMBER_ERROR_INVALID_ARGUMENT);
     EmberScene bad = scene;
-    bad.material_count = 3; /* triangles refer to materials 3 to 5 */
+    bad.material_count = 3; /* triangles refer to materials 3 to 11 */
     EXPECT(ember_render_tile(&bad, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_INVALID_SCENE);
     bad = scene;
     bad.bvh_node_count = 1; /* the root's children are missing */
@@ -258,9 +369,55 @@ int main(int argc, char **argv) {
     bad = scene;
     bad.emitter_cdf = NULL;
     EXPECT(ember_scene_check(&bad), EMBER_ERROR_NULL_POINTER);
+    bad = scene;
+    bad.uvs = NULL; /* materials 6 and 11 are textured */
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_NULL_POINTER);
+    bad = scene;
+    bad.texture_count = 2; /* material 11 reads texture 2 */
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
+    bad = scene;
+    bad.texel_count = NTEXELS - 1; /* texture 2 ends at the last texel */
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
+    EmberMaterial bad_materials[NMATERIALS];
+    memcpy(bad_materials, MATERIALS, sizeof MATERIALS);
+    bad_materials[9].ior = 0.0f;
+    bad = scene;
+    bad.materials = bad_materials;
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
+    bad_materials[9] = MATERIALS[9];
+    bad_materials[8].alpha = -0.2f;
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
     EmberBakePoint bad_point = POINTS[0];
-    bad_point.material = 6;
+    bad_point.material = NMATERIALS;
     EXPECT(ember_bake_vertices(&scene, &bake, &bad_point, 1, px), EMBER_ERROR_INVALID_ARGUMENT);
+
+    /* Records of another ABI version are refused, not misread: version 1 materials (their
+     * first field is the kind), a zeroed size, a record one field larger. */
+    LegacyMaterial legacy[NMATERIALS];
+    for (int i = 0; i < NMATERIALS; i++) {
+        legacy[i].kind = MATERIALS[i].kind < 3 ? MATERIALS[i].kind : 0;
+        memcpy(legacy[i].kd, MATERIALS[i].kd, sizeof legacy[i].kd);
+        memcpy(legacy[i].ks, MATERIALS[i].ks, sizeof legacy[i].ks);
+        legacy[i].ns = MATERIALS[i].ns;
+        memcpy(legacy[i].ke, MATERIALS[i].ke, sizeof legacy[i].ke);
+    }
+    bad = scene;
+    bad.materials = (const EmberMaterial *)(const void *)legacy;
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_ABI);
+    EXPECT(ember_render_tile(&bad, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_ABI);
+    bad = scene;
+    bad.struct_size = 0;
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_ABI);
+    EXPECT(ember_build_emitters(&bad, NULL, NULL, 0, NULL), EMBER_ERROR_ABI);
+    bad_settings = settings;
+    bad_settings.struct_size = sizeof(EmberSettings) + 8;
+    EXPECT(ember_render_tile(&scene, &CAMERA, &bad_settings, 0, 0, 1, 1, px), EMBER_ERROR_ABI);
+    EmberCamera bad_camera = CAMERA;
+    bad_camera.struct_size = 0;
+    EXPECT(ember_render_tile(&scene, &bad_camera, &settings, 0, 0, 1, 1, px), EMBER_ERROR_ABI);
+    bad_point = POINTS[0];
+    bad_point.struct_size = 0;
+    EXPECT(ember_bake_vertices(&scene, &bake, &bad_point, 1, px), EMBER_ERROR_ABI);
 
     uint64_t render_hash = 0xcbf29ce484222325ull;
     for (int k = 0; k < 3; k++) render_hash = fnv1a(render_hash, images[k], WIDTH * HEIGHT * 3);
@@ -278,9 +435,14 @@ int main(int argc, char **argv) {
         write_u32(f, NVERTICES);
         write_all(f, positions, sizeof positions);
         write_all(f, normals, sizeof normals);
+        write_all(f, uvs, sizeof uvs);
         write_u32(f, NTRIANGLES);
         write_all(f, triangles, sizeof triangles);
         write_all(f, triangle_materials, sizeof triangle_materials);
+        write_u32(f, NTEXTURES);
+        write_all(f, TEXTURES, sizeof TEXTURES);
+        write_u32(f, NTEXELS);
+        write_all(f, TEXELS, sizeof TEXELS);
         write_u32(f, emitter_count);
         write_all(f, emitter_triangles, emitter_count * sizeof *emitter_triangles);
         write_all(f, emitter_cdf, emitter_count * sizeof *emitter_cdf);

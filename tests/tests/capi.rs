@@ -1,13 +1,14 @@
 //! The C API end to end: builds the kernel as a static library with its `capi` feature
 //! (`cargo build -p ember-capi --release`), compiles tests/capi/cornell.c against it and
-//! kernel/include/ember.h with the system C compiler (`$CC` or `cc`), runs it (it renders the
-//! determinism Cornell box from two pthreads and bakes a few points), and checks that every
-//! array it built and every pixel and baked value it produced is bit-identical to what the Rust
-//! API computes from the same arrays (tests/determinism).
+//! kernel/include/ember.h with the system C compiler (`$CC` or `cc`), runs it (it checks the
+//! ABI version, renders the determinism Cornell box, with every material and textures, from
+//! two pthreads and bakes a few points), and checks that every array it built and every pixel
+//! and baked value it produced is bit-identical to what the Rust API computes from the same
+//! arrays (tests/determinism).
 
 use ember_determinism::{
     bake_point, render_pixel_rgb, Scene, BAKE_ESTIMATORS, BAKE_POINTS, HEIGHT, INTEGRATORS,
-    TRIANGLES, VERTICES, WIDTH,
+    MATERIALS, TEXELS, TEXTURES, TRIANGLES, VERTICES, WIDTH,
 };
 use ember_kernel::bvh::{self, BvhNode};
 use std::path::{Path, PathBuf};
@@ -115,10 +116,27 @@ fn c_program_renders_bit_identically_to_the_rust_api() {
         r.f32_bits(3 * VERTICES),
         bits3(&scene.normals.map(|n| n.to_array()))
     );
+    let uvs: Vec<u32> = scene
+        .uvs
+        .iter()
+        .flat_map(|uv| uv.to_array().map(f32::to_bits))
+        .collect();
+    assert_eq!(r.f32_bits(2 * VERTICES), uvs, "texture coordinates");
     assert_eq!(r.u32() as usize, TRIANGLES);
     let tris: Vec<u32> = scene.triangles.iter().flatten().copied().collect();
     assert_eq!(r.u32s(3 * TRIANGLES), tris);
     assert_eq!(r.u32s(TRIANGLES), scene.triangle_materials);
+    // The textures and texels the C program hands ember are the Rust scene's.
+    assert_eq!(r.u32() as usize, TEXTURES.len());
+    for (i, t) in TEXTURES.iter().enumerate() {
+        let mut expect = vec![t.width, t.height, t.first_texel];
+        expect.extend(t.uv_scale.to_array().map(f32::to_bits));
+        expect.extend(t.uv_offset.to_array().map(f32::to_bits));
+        assert_eq!(r.u32s(7), expect, "texture {i}");
+    }
+    assert_eq!(r.u32() as usize, TEXELS.len());
+    assert_eq!(r.f32_bits(3 * TEXELS.len()), bits3(&TEXELS), "texels");
+    assert_eq!(bits3(&scene.texels.map(|t| t.to_array())), bits3(&TEXELS));
     // The emitter table and the BVH the C API built equal the kernel builders' output.
     let ne = r.u32() as usize;
     assert_eq!(ne, scene.emitter_count, "emitter count");
@@ -181,8 +199,38 @@ fn c_program_renders_bit_identically_to_the_rust_api() {
             .map(|i| bake_point(&view, estimator, i))
             .collect();
         assert_eq!(c, bits3(&rust), "{estimator:?} bake");
+        // Every point gathers light, so that the comparison means something.
+        for (i, v) in rust.iter().enumerate() {
+            assert!(
+                v.iter().any(|&c| c > 0.0),
+                "{estimator:?}: point {i} baked {v:?}"
+            );
+        }
     }
     assert_eq!(r.1, r.0.len(), "trailing bytes in the dump");
+
+    // The scene compared has every material: each kind, smooth and rough conductors and
+    // dielectrics, a textured diffuse and a textured Phong material, each on some triangle.
+    use ember_determinism::{CONDUCTOR, DIELECTRIC, DIFFUSE, MIXTURE, PHONG};
+    use ember_kernel::texture::NO_TEXTURE;
+    let has = |f: &dyn Fn(&ember_determinism::MaterialDesc) -> bool| MATERIALS.iter().any(f);
+    assert!(has(&|m| m.kind == CONDUCTOR && m.alpha == 0.0));
+    assert!(has(&|m| m.kind == CONDUCTOR && m.alpha >= 0.1));
+    assert!(has(&|m| m.kind == DIELECTRIC
+        && m.alpha == 0.0
+        && m.ior == 1.5));
+    assert!(has(&|m| m.kind == DIELECTRIC && m.alpha >= 0.1));
+    assert!(has(&|m| m.kind == DIFFUSE && m.kd_texture != NO_TEXTURE));
+    assert!(has(&|m| m.kind == PHONG
+        && m.kd_texture != NO_TEXTURE
+        && m.ks_texture != NO_TEXTURE));
+    assert!(has(&|m| m.kind == MIXTURE));
+    for i in 0..MATERIALS.len() as u32 {
+        assert!(
+            scene.triangle_materials.contains(&i),
+            "material {i} is on no triangle"
+        );
+    }
 
     // The hashes it printed are the determinism hashes.
     let h = ember_determinism::hashes();

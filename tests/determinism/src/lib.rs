@@ -1,11 +1,14 @@
 //! The scene of ember's determinism checks: a small Cornell box built in arrays (no files),
-//! rendered at 32×32 with every BSDF (diffuse walls, a Phong box, a mixture box) by each path
-//! integrator, plus a bake of a few surface points with both bake estimators. The pixels and
+//! rendered at 32×32 with every material of the kernel (diffuse walls, a Phong box, a mixture
+//! box, a smooth mirror, a rough metal panel, a glass box with one frosted face, a floor with a
+//! diffuse texture and a picture with a textured Phong material) by each path integrator,
+//! plus a bake of surface points on each of them with both bake estimators. The pixels and
 //! baked values are hashed bit for bit (FNV-1a over the little-endian bytes of each f32).
 //!
 //! `#![no_std]` and allocation-free: the same code runs on the host (any thread count), on
 //! aarch64 under qemu, as a wasm32 module under Node.js and in the `no_std` check. The C API
-//! test (`tests/capi/cornell.c`) builds the same box in C from the same literal quads.
+//! test (`tests/capi/cornell.c`) builds the same box in C from the same literal quads,
+//! materials, texels and texture coordinates.
 #![no_std]
 
 use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
@@ -15,9 +18,11 @@ use ember_kernel::integrator::{
     bake_vertex, render_pixel, BakeEstimator, BakePoint, Integrator, PathSettings, PixelStats,
     Shortcuts,
 };
+use ember_kernel::material::{PhongParams, Reflectance, Surface};
 use ember_kernel::sampler::DEFAULT_SEED;
 use ember_kernel::scene::{Material, SceneView};
-use ember_kernel::{Rgb, Vec3};
+use ember_kernel::texture::{Texture, Textures, NO_TEXTURE};
+use ember_kernel::{Rgb, Vec2, Vec3};
 
 /// Film size of the determinism render.
 pub const WIDTH: u32 = 32;
@@ -54,67 +59,201 @@ pub const INTEGRATORS: [Integrator; 3] = [
 /// The bake estimators, in hashing order.
 pub const BAKE_ESTIMATORS: [BakeEstimator; 2] = [BakeEstimator::Mis, BakeEstimator::Explicit];
 
-/// A material as the C API describes it: `kind` 0 diffuse, 1 Phong, 2 mixture.
+/// Material kinds, numbered as the C API's `EMBER_MATERIAL_*`.
+pub const DIFFUSE: u32 = 0;
+pub const PHONG: u32 = 1;
+pub const MIXTURE: u32 = 2;
+pub const CONDUCTOR: u32 = 3;
+pub const DIELECTRIC: u32 = 4;
+
+/// A material as the C API's `EmberMaterial` describes it (without its `struct_size`): `kind`
+/// says which fields are read; texture ids are [`NO_TEXTURE`] for constants.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MaterialDesc {
     pub kind: u32,
     pub kd: [f32; 3],
+    pub kd_texture: u32,
     pub ks: [f32; 3],
+    pub ks_texture: u32,
     pub ns: f32,
     pub ke: [f32; 3],
+    pub ior: f32,
+    pub tf: [f32; 3],
+    pub alpha: f32,
 }
 
 impl MaterialDesc {
-    /// The kernel material (what the C API converts it to).
+    /// The kernel material (what the C API converts it to); a textured Phong material's clamp
+    /// and weight come from the texels in `textures`.
+    ///
+    /// # Panics
+    /// If a texture id is not in `textures`.
     #[must_use]
-    pub fn material(&self) -> Material {
-        let (kd, ks) = (Rgb::from_array(self.kd), Rgb::from_array(self.ks));
-        let material = match self.kind {
-            0 => Material::diffuse(kd),
-            1 => Material::phong(kd, ks, self.ns),
-            _ => Material::mixture(kd, ks, self.ns),
+    pub fn material(&self, textures: &Textures<'_>) -> Material {
+        let reflectance = |value: [f32; 3], texture: u32| {
+            if texture == NO_TEXTURE {
+                Reflectance::constant(Rgb::from_array(value))
+            } else {
+                Reflectance::texture(texture)
+            }
         };
-        material.with_emission(Rgb::from_array(self.ke))
+        let (kd, ks) = (
+            reflectance(self.kd, self.kd_texture),
+            reflectance(self.ks, self.ks_texture),
+        );
+        let phong = || PhongParams::new(kd, ks, self.ns, textures).expect("texture ids");
+        let surface = match self.kind {
+            DIFFUSE => Surface::Diffuse { kd },
+            PHONG => Surface::Phong(phong()),
+            MIXTURE => Surface::Mixture(phong()),
+            CONDUCTOR => Surface::Conductor {
+                ks,
+                alpha: self.alpha,
+            },
+            _ => Surface::Dielectric {
+                eta: self.ior,
+                tf: Rgb::from_array(self.tf),
+                alpha: self.alpha,
+            },
+        };
+        Material::new(surface).with_emission(Rgb::from_array(self.ke))
+    }
+}
+
+/// A material of `kind` with constant `kd` and `ks`, exponent `ns` and emission `ke`.
+const fn basic(kind: u32, kd: [f32; 3], ks: [f32; 3], ns: f32, ke: [f32; 3]) -> MaterialDesc {
+    MaterialDesc {
+        kind,
+        kd,
+        kd_texture: NO_TEXTURE,
+        ks,
+        ks_texture: NO_TEXTURE,
+        ns,
+        ke,
+        ior: 1.0,
+        tf: [1.0; 3],
+        alpha: 0.0,
     }
 }
 
 const fn diffuse(kd: [f32; 3]) -> MaterialDesc {
+    basic(DIFFUSE, kd, [0.0; 3], 1.0, [0.0; 3])
+}
+
+const fn conductor(ks: [f32; 3], alpha: f32) -> MaterialDesc {
     MaterialDesc {
-        kind: 0,
-        kd,
-        ks: [0.0; 3],
-        ns: 1.0,
-        ke: [0.0; 3],
+        alpha,
+        ..basic(CONDUCTOR, [0.0; 3], ks, 1.0, [0.0; 3])
     }
 }
 
-/// White, red and green walls, the light, a Phong box and a mixture box.
-pub const MATERIALS: [MaterialDesc; 6] = [
+const fn dielectric(ior: f32, tf: [f32; 3], alpha: f32) -> MaterialDesc {
+    MaterialDesc {
+        ior,
+        tf,
+        alpha,
+        ..basic(DIELECTRIC, [0.0; 3], [0.0; 3], 1.0, [0.0; 3])
+    }
+}
+
+/// White, red and green walls, the light, a Phong box, a mixture box, the textured floor
+/// (texture 0), a smooth mirror, a rough metal (alpha 0.2), smooth glass (IOR 1.5, slightly
+/// tinted), frosted glass (IOR 1.5, alpha 0.15) and a Phong picture whose `Kd` and `Ks` are
+/// textures 1 and 2 (their maxima add up to more than 1, so its energy clamp applies).
+pub const MATERIALS: [MaterialDesc; 12] = [
     diffuse([0.725, 0.71, 0.68]),
     diffuse([0.63, 0.065, 0.05]),
     diffuse([0.14, 0.45, 0.091]),
+    basic(DIFFUSE, [0.0; 3], [0.0; 3], 1.0, [17.0, 12.0, 4.0]),
+    basic(PHONG, [0.1, 0.1, 0.1], [0.7, 0.7, 0.7], 40.0, [0.0; 3]),
+    basic(MIXTURE, [0.5, 0.4, 0.3], [0.3, 0.3, 0.3], 15.0, [0.0; 3]),
     MaterialDesc {
-        kind: 0,
-        kd: [0.0; 3],
-        ks: [0.0; 3],
-        ns: 1.0,
-        ke: [17.0, 12.0, 4.0],
+        kd_texture: 0,
+        ..diffuse([0.0; 3])
     },
+    conductor([0.95, 0.93, 0.88], 0.0),
+    conductor([0.9, 0.6, 0.35], 0.2),
+    dielectric(1.5, [0.95, 0.97, 1.0], 0.0),
+    dielectric(1.5, [1.0, 1.0, 1.0], 0.15),
     MaterialDesc {
-        kind: 1,
-        kd: [0.1, 0.1, 0.1],
-        ks: [0.7, 0.7, 0.7],
-        ns: 40.0,
-        ke: [0.0; 3],
-    },
-    MaterialDesc {
-        kind: 2,
-        kd: [0.5, 0.4, 0.3],
-        ks: [0.3, 0.3, 0.3],
-        ns: 15.0,
-        ke: [0.0; 3],
+        kd_texture: 1,
+        ks_texture: 2,
+        ..basic(PHONG, [0.0; 3], [0.0; 3], 30.0, [0.0; 3])
     },
 ];
+
+/// The texels of the three textures, each bottom row first: 0 is a 4×4 checker of light and
+/// dark with one reddish corner texel (top right), 1 a 4×4 colour ramp, 2 a 2×2 specular map.
+pub const TEXELS: [[f32; 3]; 36] = [
+    // Texture 0: 4×4.
+    [0.8, 0.78, 0.74],
+    [0.25, 0.25, 0.3],
+    [0.8, 0.78, 0.74],
+    [0.25, 0.25, 0.3],
+    [0.25, 0.25, 0.3],
+    [0.8, 0.78, 0.74],
+    [0.25, 0.25, 0.3],
+    [0.8, 0.78, 0.74],
+    [0.8, 0.78, 0.74],
+    [0.25, 0.25, 0.3],
+    [0.8, 0.78, 0.74],
+    [0.25, 0.25, 0.3],
+    [0.25, 0.25, 0.3],
+    [0.8, 0.78, 0.74],
+    [0.25, 0.25, 0.3],
+    [0.7, 0.2, 0.15],
+    // Texture 1: 4×4.
+    [0.1, 0.1, 0.5],
+    [0.2, 0.1, 0.45],
+    [0.3, 0.15, 0.4],
+    [0.4, 0.2, 0.35],
+    [0.1, 0.3, 0.4],
+    [0.2, 0.35, 0.35],
+    [0.35, 0.35, 0.3],
+    [0.5, 0.4, 0.25],
+    [0.1, 0.5, 0.3],
+    [0.25, 0.55, 0.25],
+    [0.45, 0.55, 0.2],
+    [0.65, 0.55, 0.15],
+    [0.1, 0.7, 0.2],
+    [0.3, 0.7, 0.15],
+    [0.55, 0.7, 0.1],
+    [0.8, 0.7, 0.05],
+    // Texture 2: 2×2.
+    [0.6, 0.6, 0.6],
+    [0.2, 0.2, 0.2],
+    [0.4, 0.3, 0.2],
+    [0.05, 0.05, 0.05],
+];
+
+/// The textures: the floor's checker repeated twice each way and shifted by an eighth, the
+/// picture's two maps as they are.
+pub const TEXTURES: [Texture; 3] = [
+    Texture {
+        width: 4,
+        height: 4,
+        first_texel: 0,
+        uv_scale: Vec2::new(2.0, 2.0),
+        uv_offset: Vec2::new(0.125, 0.0),
+    },
+    Texture {
+        width: 4,
+        height: 4,
+        first_texel: 16,
+        uv_scale: Vec2::ONE,
+        uv_offset: Vec2::ZERO,
+    },
+    Texture {
+        width: 2,
+        height: 2,
+        first_texel: 32,
+        uv_scale: Vec2::ONE,
+        uv_offset: Vec2::ZERO,
+    },
+];
+
+/// The texture coordinates of every quad's four corners, in corner order.
+pub const QUAD_UVS: [[f32; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
 
 /// A flat quad: corners counter-clockwise seen from the side its normal points to.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -124,9 +263,12 @@ pub struct Quad {
     pub material: u32,
 }
 
-/// The room (x in [-1, 1], y in [0, 2], z in [-1, 1], open toward +z), the light just below the
-/// ceiling, a short mixture box and a tall Phong box (five faces each).
-pub const QUADS: [Quad; 16] = [
+/// The room (x in [-1, 1], y in [0, 2], z in [-1, 1], open toward +z) with a textured floor,
+/// the light just below the ceiling, a short mixture box and a tall Phong box (five faces
+/// each), a mirror on the left wall, a rough metal panel on the right wall, a textured Phong
+/// picture on the back wall, and a glass box (five faces, standing on the floor) whose front
+/// face is frosted.
+pub const QUADS: [Quad; 24] = [
     Quad {
         corners: [
             [-1.0, 0.0, 1.0],
@@ -135,7 +277,7 @@ pub const QUADS: [Quad; 16] = [
             [-1.0, 0.0, -1.0],
         ],
         normal: [0.0, 1.0, 0.0],
-        material: 0,
+        material: 6,
     },
     Quad {
         corners: [
@@ -287,6 +429,86 @@ pub const QUADS: [Quad; 16] = [
         normal: [1.0, 0.0, 0.0],
         material: 4,
     },
+    Quad {
+        corners: [
+            [-0.99, 0.7, 0.2],
+            [-0.99, 0.7, -0.8],
+            [-0.99, 1.7, -0.8],
+            [-0.99, 1.7, 0.2],
+        ],
+        normal: [1.0, 0.0, 0.0],
+        material: 7,
+    },
+    Quad {
+        corners: [
+            [0.99, 0.7, -0.3],
+            [0.99, 0.7, 0.7],
+            [0.99, 1.5, 0.7],
+            [0.99, 1.5, -0.3],
+        ],
+        normal: [-1.0, 0.0, 0.0],
+        material: 8,
+    },
+    Quad {
+        corners: [
+            [0.1, 1.3, -0.99],
+            [0.9, 1.3, -0.99],
+            [0.9, 1.9, -0.99],
+            [0.1, 1.9, -0.99],
+        ],
+        normal: [0.0, 0.0, 1.0],
+        material: 11,
+    },
+    Quad {
+        corners: [
+            [-0.05, 0.45, 0.65],
+            [0.4, 0.45, 0.65],
+            [0.4, 0.45, 0.25],
+            [-0.05, 0.45, 0.25],
+        ],
+        normal: [0.0, 1.0, 0.0],
+        material: 9,
+    },
+    Quad {
+        corners: [
+            [-0.05, 0.0, 0.65],
+            [0.4, 0.0, 0.65],
+            [0.4, 0.45, 0.65],
+            [-0.05, 0.45, 0.65],
+        ],
+        normal: [0.0, 0.0, 1.0],
+        material: 10,
+    },
+    Quad {
+        corners: [
+            [0.4, 0.0, 0.25],
+            [-0.05, 0.0, 0.25],
+            [-0.05, 0.45, 0.25],
+            [0.4, 0.45, 0.25],
+        ],
+        normal: [0.0, 0.0, -1.0],
+        material: 9,
+    },
+    Quad {
+        corners: [
+            [-0.05, 0.0, 0.25],
+            [-0.05, 0.0, 0.65],
+            [-0.05, 0.45, 0.65],
+            [-0.05, 0.45, 0.25],
+        ],
+        normal: [-1.0, 0.0, 0.0],
+        material: 9,
+    },
+    Quad {
+        corners: [
+            [0.4, 0.0, 0.65],
+            [0.4, 0.0, 0.25],
+            [0.4, 0.45, 0.25],
+            [0.4, 0.45, 0.65],
+        ],
+        normal: [1.0, 0.0, 0.0],
+        material: 9,
+    },
 ];
 
 pub const VERTICES: usize = 4 * QUADS.len();
@@ -294,16 +516,37 @@ pub const TRIANGLES: usize = 2 * QUADS.len();
 pub const BVH_NODES: usize = bvh::max_nodes(TRIANGLES);
 pub const WIDE_NODES: usize = bvh::max_wide_nodes(BVH_NODES);
 
-/// Surface points baked: (position, normal, material). Key `i` for point `i`.
-pub const BAKE_POINTS: [([f32; 3], [f32; 3], u32); 8] = [
-    ([0.0, 0.0, 0.7], [0.0, 1.0, 0.0], 0),
-    ([0.0, 1.0, -1.0], [0.0, 0.0, 1.0], 0),
-    ([-1.0, 1.0, 0.0], [1.0, 0.0, 0.0], 1),
-    ([1.0, 1.0, 0.0], [-1.0, 0.0, 0.0], 2),
-    ([0.6, 2.0, 0.6], [0.0, -1.0, 0.0], 0),
-    ([0.4, 1.2, -0.4], [0.0, 1.0, 0.0], 4),
-    ([-0.45, 0.6, 0.1], [0.0, 1.0, 0.0], 5),
-    ([-1.0, 0.0, -1.0], [0.0, 1.0, 0.0], 0),
+/// A surface point to bake: position, normal, material and texture coordinates. Key `i` for
+/// point `i`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakeDesc {
+    pub p: [f32; 3],
+    pub n: [f32; 3],
+    pub uv: [f32; 2],
+    pub material: u32,
+}
+
+const fn bake(p: [f32; 3], n: [f32; 3], uv: [f32; 2], material: u32) -> BakeDesc {
+    BakeDesc { p, n, uv, material }
+}
+
+/// Surface points baked: on the walls, the boxes and the ceiling, on the textured floor (at
+/// its texture coordinates), the mirror, the metal panel, both glass surfaces and the picture.
+pub const BAKE_POINTS: [BakeDesc; 14] = [
+    bake([0.0, 0.0, 0.7], [0.0, 1.0, 0.0], [0.5, 0.15], 6),
+    bake([0.0, 1.0, -1.0], [0.0, 0.0, 1.0], [0.0, 0.0], 0),
+    bake([-1.0, 0.4, 0.6], [1.0, 0.0, 0.0], [0.0, 0.0], 1),
+    bake([1.0, 1.8, -0.6], [-1.0, 0.0, 0.0], [0.0, 0.0], 2),
+    bake([0.6, 2.0, 0.6], [0.0, -1.0, 0.0], [0.0, 0.0], 0),
+    bake([0.4, 1.2, -0.4], [0.0, 1.0, 0.0], [0.0, 0.0], 4),
+    bake([-0.45, 0.6, 0.1], [0.0, 1.0, 0.0], [0.0, 0.0], 5),
+    bake([-1.0, 0.0, -1.0], [0.0, 1.0, 0.0], [0.0, 1.0], 6),
+    bake([-0.99, 1.2, -0.3], [1.0, 0.0, 0.0], [0.5, 0.5], 7),
+    bake([0.99, 1.1, 0.2], [-1.0, 0.0, 0.0], [0.5, 0.5], 8),
+    bake([0.175, 0.45, 0.45], [0.0, 1.0, 0.0], [0.5, 0.5], 9),
+    bake([0.175, 0.2, 0.65], [0.0, 0.0, 1.0], [0.5, 0.5], 10),
+    bake([0.5, 1.6, -0.99], [0.0, 0.0, 1.0], [0.5, 0.5], 11),
+    bake([0.6, 0.0, 0.4], [0.0, 1.0, 0.0], [0.8, 0.3], 6),
 ];
 
 /// The camera: in front of the open side, looking at the middle of the room.
@@ -325,6 +568,8 @@ pub fn camera() -> Camera {
 pub struct Scene {
     pub positions: [Vec3; VERTICES],
     pub normals: [Vec3; VERTICES],
+    pub uvs: [Vec2; VERTICES],
+    pub texels: [Rgb; TEXELS.len()],
     pub triangles: [[u32; 3]; TRIANGLES],
     pub triangle_materials: [u32; TRIANGLES],
     pub materials: [Material; MATERIALS.len()],
@@ -354,9 +599,11 @@ impl Scene {
         let mut s = Self {
             positions: [Vec3::ZERO; VERTICES],
             normals: [Vec3::ZERO; VERTICES],
+            uvs: [Vec2::ZERO; VERTICES],
+            texels: TEXELS.map(Rgb::from_array),
             triangles: [[0; 3]; TRIANGLES],
             triangle_materials: [0; TRIANGLES],
-            materials: MATERIALS.map(|m| m.material()),
+            materials: [Material::BLACK; MATERIALS.len()],
             emitter_triangles: [0; TRIANGLES],
             emitter_cdf: [0.0; TRIANGLES],
             emitter_count: 0,
@@ -368,6 +615,7 @@ impl Scene {
             for (c, corner) in quad.corners.iter().enumerate() {
                 s.positions[4 * q + c] = Vec3::from_array(*corner);
                 s.normals[4 * q + c] = Vec3::from_array(quad.normal);
+                s.uvs[4 * q + c] = Vec2::from_array(QUAD_UVS[c]);
             }
             let v = 4 * q as u32;
             s.triangles[2 * q] = [v, v + 1, v + 2];
@@ -375,6 +623,12 @@ impl Scene {
             s.triangle_materials[2 * q] = quad.material;
             s.triangle_materials[2 * q + 1] = quad.material;
         }
+        let textures = Textures {
+            uvs: &s.uvs,
+            textures: &TEXTURES,
+            texels: &s.texels,
+        };
+        s.materials = MATERIALS.map(|m| m.material(&textures));
         s.emitter_count = build_emitter_table(
             &s.positions,
             &s.triangles,
@@ -413,7 +667,11 @@ impl Scene {
                 prim_order: &self.bvh_prim_order,
             }
             .into(),
-            textures: ember_kernel::texture::Textures::NONE,
+            textures: Textures {
+                uvs: &self.uvs,
+                textures: &TEXTURES,
+                texels: &self.texels,
+            },
         }
     }
 }
@@ -455,12 +713,12 @@ pub fn render_pixel_rgb(scene: &SceneView<'_>, integrator: Integrator, x: u32, y
 /// The baked value of point `i` of [`BAKE_POINTS`] with `estimator`.
 #[must_use]
 pub fn bake_point(scene: &SceneView<'_>, estimator: BakeEstimator, i: usize) -> [f32; 3] {
-    let (p, n, material) = BAKE_POINTS[i];
+    let b = BAKE_POINTS[i];
     let point = BakePoint {
-        p: Vec3::from_array(p),
-        n: Vec3::from_array(n),
-        material,
-        uv: ember_kernel::Vec2::ZERO,
+        p: Vec3::from_array(b.p),
+        n: Vec3::from_array(b.n),
+        material: b.material,
+        uv: Vec2::from_array(b.uv),
     };
     bake_vertex(
         scene,
