@@ -40,6 +40,18 @@ impl Reflectance {
     pub const fn is_textured(&self) -> bool {
         self.texture != NO_TEXTURE
     }
+
+    /// Per-channel maximum and average over the surface: the constant itself, or
+    /// [`texel_stats`] of the texture's texels; `None` for a texture that `textures` does not
+    /// hold ([`Textures::texels_of`]).
+    #[must_use]
+    pub fn stats(&self, textures: &Textures<'_>) -> Option<(Rgb, Rgb)> {
+        if self.is_textured() {
+            texel_stats(textures.texels_of(self.texture)?)
+        } else {
+            Some((self.value, self.value))
+        }
+    }
 }
 
 /// Texture coordinates computed on first use (only textured parameters need them).
@@ -54,18 +66,6 @@ impl<F: FnOnce() -> Vec2> Lazy<F> {
         Self {
             f: Some(f),
             v: Vec2::ZERO,
-        }
-    }
-
-    /// Per-channel maximum and average over the surface: the constant itself, or
-    /// [`texel_stats`] of the texture's texels; `None` for a texture that `textures` does not
-    /// hold ([`Textures::texels_of`]).
-    #[must_use]
-    pub fn stats(&self, textures: &Textures<'_>) -> Option<(Rgb, Rgb)> {
-        if self.is_textured() {
-            texel_stats(textures.texels_of(self.texture)?)
-        } else {
-            Some((self.value, self.value))
         }
     }
 
