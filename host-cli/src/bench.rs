@@ -46,6 +46,9 @@ pub fn integrator_name(i: Integrator) -> &'static str {
         Integrator::PathImplicit => "implicit",
         Integrator::PathExplicit => "explicit",
         Integrator::PathMis => "mis",
+        Integrator::LightTracing => "lighttracer",
+        Integrator::Bdpt(ember_kernel::integrator::MisHeuristic::Power) => "bdpt",
+        Integrator::Bdpt(ember_kernel::integrator::MisHeuristic::Balance) => "bdpt-balance",
     }
 }
 

@@ -190,6 +190,8 @@ pub fn render_interruptible(
                                 done,
                                 count,
                                 acc[k],
+                                None,
+                                &mut ember_kernel::splat::NoSplats,
                             ));
                             k += 1;
                         }

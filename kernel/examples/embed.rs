@@ -159,6 +159,8 @@ fn main() {
                         0,
                         spp,
                         PixelStats::default(),
+                        None,
+                        &mut ember_kernel::splat::NoSplats,
                     );
                     *px = stats.sum / spp as f32;
                 }

@@ -1098,6 +1098,8 @@ unsafe fn ember_render_tile_impl(
             0,
             settings.spp,
             PixelStats::default(),
+            None,
+            &mut crate::splat::NoSplats,
         );
         px.copy_from_slice(&(stats.sum / n).to_array());
     }

@@ -1,7 +1,7 @@
 //! Area emitters: emissive triangles sampled from a CDF in a caller slice (FORMAT.md §5).
 
 use crate::geometry::triangle_point;
-use crate::math::{warp, AreaPdf};
+use crate::math::{warp, AreaPdf, Frame, SolidAnglePdf};
 use crate::scene::SceneView;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -67,6 +67,49 @@ pub fn sample_emitter(scene: &SceneView<'_>, u_select: f32, u_pos: Vec2) -> Opti
         pdf: AreaPdf(prob / area),
         triangle,
     })
+}
+
+/// Light leaving an emitter, for paths traced from the lights ([`sample_le`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmissionSample {
+    /// The point on the emitter (with its normals and error bound).
+    pub point: EmitterSample,
+    /// Unit world direction of the emitted light, on the emitting side.
+    pub w: Vec3,
+    /// Density of `w` per unit solid angle: cosine-weighted about the shading normal.
+    pub pdf_dir: SolidAnglePdf,
+}
+
+/// Samples light leaving the emitters (pbrt's `SampleLe`): a point chosen as
+/// [`sample_emitter`] does (`u_select`, `u_pos`; its `pdf` is the area density over all
+/// emitters), then a cosine-weighted direction about its shading normal (`u_dir`), the side
+/// it emits to (FORMAT.md §5; TinyRender's `sampleEmitterDirection`). `None` without
+/// emitters, or when the direction falls behind the geometric surface (possible only where
+/// the interpolated normal tilts away from it: such light would leak through the surface).
+#[inline]
+#[must_use]
+pub fn sample_le(
+    scene: &SceneView<'_>,
+    u_select: f32,
+    u_pos: Vec2,
+    u_dir: Vec2,
+) -> Option<EmissionSample> {
+    let point = sample_emitter(scene, u_select, u_pos)?;
+    let local = warp::sample_cosine_hemisphere(u_dir);
+    let w = Frame::from_normal(point.n).to_world(local);
+    let pdf_dir = SolidAnglePdf(warp::cosine_hemisphere_pdf(local.z));
+    if w.dot(point.ng) <= 0.0 || pdf_dir.0 <= 0.0 {
+        return None;
+    }
+    Some(EmissionSample { point, w, pdf_dir })
+}
+
+/// Density with which [`sample_le`] emits toward unit direction `w` from a point with shading
+/// normal `n`, per unit solid angle (the position density is [`emitter_pdf`]).
+#[inline]
+#[must_use]
+pub fn pdf_le_direction(n: Vec3, w: Vec3) -> SolidAnglePdf {
+    SolidAnglePdf(warp::cosine_hemisphere_pdf(n.dot(w)))
 }
 
 /// Density per unit area with which [`sample_emitter`] picks points on `triangle` (0 for a

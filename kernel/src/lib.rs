@@ -12,6 +12,7 @@
 //! - [`material`]: materials, turned into BSDFs at surface points; [`texture`]: image textures.
 //! - [`emitter`]: area emitters and the table they are sampled from.
 //! - [`scene`]: [`scene::SceneView`], the borrowed scene every integrator works on.
+//! - [`splat`]: order-independent (fixed-point) accumulation of light-tracing splats.
 //! - [`integrator`]: the path tracers (one loop, three strategies) and the GI bake.
 //! - `capi` (feature `capi`): the C API over caller-owned arrays (`kernel/include/ember.h`).
 #![no_std]
@@ -36,6 +37,7 @@ pub mod material;
 pub mod math;
 pub mod sampler;
 pub mod scene;
+pub mod splat;
 pub mod texture;
 
 pub use glam;

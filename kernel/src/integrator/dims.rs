@@ -4,7 +4,10 @@
 //! scattering vertex of the path draws [`PER_BOUNCE`] dimensions in the order of the offsets
 //! below, whether or not it uses all of them, so that dimension `CAMERA + k·PER_BOUNCE + o`
 //! always has the same meaning. A bake sample starts with [`BAKE_VIEW`] dimensions instead
-//! (the view direction), then the same per-bounce layout.
+//! (the view direction), then the same per-bounce layout. A light path (light tracing; in
+//! BDPT it follows the camera subpath) starts with [`LIGHT_START`] dimensions and draws
+//! [`PER_LIGHT_BOUNCE`] per vertex. In BDPT the camera subpath's per-bounce emitter numbers
+//! are those of its `s = 1` connection (next-event estimation) at that vertex.
 
 use crate::sampler::Sampler;
 use glam::Vec2;
@@ -75,4 +78,55 @@ const _: () = assert!(
 #[inline]
 pub fn bake_view<S: Sampler>(sampler: &mut S) -> Vec2 {
     sampler.next_2d()
+}
+
+/// Dimensions that start a light path (light tracing, BDPT's light subpath): the emitter
+/// choice (1), the point on it (2) and the direction of emission (2).
+pub const LIGHT_START: u32 = 5;
+/// Dimensions per scattering vertex of a light path: the lobe (1), the direction (2) and
+/// Russian roulette (1). A light path has no next-event estimation.
+pub const PER_LIGHT_BOUNCE: u32 = 4;
+
+/// The numbers that start a light path, drawn in the layout's order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightStart {
+    pub select: f32,
+    pub position: Vec2,
+    pub direction: Vec2,
+}
+
+impl LightStart {
+    #[inline]
+    pub fn draw<S: Sampler>(sampler: &mut S) -> Self {
+        let select = sampler.next_1d();
+        let position = sampler.next_2d();
+        let direction = sampler.next_2d();
+        Self {
+            select,
+            position,
+            direction,
+        }
+    }
+}
+
+/// The numbers of one scattering vertex of a light path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightBounce {
+    pub lobe: f32,
+    pub direction: Vec2,
+    pub roulette: f32,
+}
+
+impl LightBounce {
+    #[inline]
+    pub fn draw<S: Sampler>(sampler: &mut S) -> Self {
+        let lobe = sampler.next_1d();
+        let direction = sampler.next_2d();
+        let roulette = sampler.next_1d();
+        Self {
+            lobe,
+            direction,
+            roulette,
+        }
+    }
 }

@@ -15,12 +15,16 @@
 //! and Mitsuba 3 do.
 
 mod bake;
+pub mod bdpt;
 pub mod dims;
 mod direct;
+mod light_tracer;
 mod path;
 
 pub use bake::{bake_vertex, BakeEstimator, BakePoint};
+pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};
+pub use light_tracer::{light_trace, ray_to_camera};
 pub use path::{
     li_path, li_path_from_surface, power_heuristic, DirectLighting, PathStrategy, Roulette,
 };
@@ -46,20 +50,35 @@ pub enum Integrator {
     /// only at the camera vertex.
     PathExplicit,
     /// Emitter and BSDF sampling of direct light at every vertex, combined by multiple
-    /// importance sampling (power heuristic). Not a TinyRender integrator: ember's best.
+    /// importance sampling (power heuristic). Not a TinyRender integrator.
     PathMis,
+    /// Light tracing: paths from the emitters connected to the camera at every vertex and
+    /// splatted (`type = "lighttracer"`).
+    LightTracing,
+    /// Bidirectional path tracing with every connection strategy, combined by MIS with the
+    /// given heuristic (`type = "bdpt"`).
+    Bdpt(MisHeuristic),
 }
 
 impl Integrator {
-    /// The path loop settings of this estimator.
+    /// The path loop settings of a path tracer (`None` for light tracing and BDPT).
     #[inline]
     #[must_use]
-    pub const fn strategy(self) -> PathStrategy {
+    pub const fn path_strategy(self) -> Option<PathStrategy> {
         match self {
-            Self::PathImplicit => PathStrategy::IMPLICIT,
-            Self::PathExplicit => PathStrategy::EXPLICIT,
-            Self::PathMis => PathStrategy::MIS,
+            Self::PathImplicit => Some(PathStrategy::IMPLICIT),
+            Self::PathExplicit => Some(PathStrategy::EXPLICIT),
+            Self::PathMis => Some(PathStrategy::MIS),
+            Self::LightTracing | Self::Bdpt(_) => None,
         }
+    }
+
+    /// Whether the estimator splats contributions onto other pixels than its sample's
+    /// ([`crate::splat`]): tiles are then not independent.
+    #[inline]
+    #[must_use]
+    pub const fn splats(self) -> bool {
+        matches!(self, Self::LightTracing | Self::Bdpt(_))
     }
 }
 
@@ -215,12 +234,6 @@ impl PathSettings {
     }
 }
 
-/// Receives contributions at arbitrary pixels (light tracing and BDPT's t = 1 strategy).
-/// Path tracers write only their own pixel and do not use it.
-pub trait SplatSink {
-    fn splat(&mut self, raster: Vec2, value: Rgb);
-}
-
 /// Radiance along `ray` with the chosen estimator.
 #[inline]
 pub fn li<S: Sampler>(
@@ -236,6 +249,73 @@ pub fn li<S: Sampler>(
         Integrator::PathImplicit => li_path(scene, ray, settings, &PathStrategy::IMPLICIT, sampler),
         Integrator::PathExplicit => li_path(scene, ray, settings, &PathStrategy::EXPLICIT, sampler),
         Integrator::PathMis => li_path(scene, ray, settings, &PathStrategy::MIS, sampler),
+        // Not path tracers: they need the camera and a sink (see `render_sample`).
+        Integrator::LightTracing | Integrator::Bdpt(_) => Rgb::ZERO,
+    }
+}
+
+/// What one sample gives its own pixel: radiance (0 for light tracing, whose contributions
+/// are all splats) and the rays it traced.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SampleResult {
+    pub l: Rgb,
+    pub rays: u32,
+}
+
+/// Renders sample `index` of pixel `(x, y)`: the kernel's rendering entry point. The sample
+/// is keyed by `(seed, y·width + x, index)` and is a pure function of its key, the scene, the
+/// camera and the settings. Path tracers return their radiance; light tracing traces one
+/// light path (the `W·H·spp` light paths of an image are one per pixel sample) and BDPT one
+/// pair of subpaths, and both put their contributions to other pixels into `sink` (see
+/// [`crate::splat`] for accumulating them order-independently). `scratch` holds BDPT's
+/// subpaths (other estimators take `None`); BDPT without it renders nothing.
+#[inline]
+pub fn render_sample<K: BdptSink>(
+    integrator: Integrator,
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    settings: &PathSettings,
+    seed: u64,
+    x: u32,
+    y: u32,
+    index: u32,
+    scratch: Option<&mut BdptScratch>,
+    sink: &mut K,
+) -> SampleResult {
+    let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
+    let mut sampler = RayCounting::new(IndependentSampler::new(seed, pixel, index));
+    let l = match integrator {
+        Integrator::LightTracing => {
+            light_trace(scene, camera, settings, &mut sampler, sink);
+            Rgb::ZERO
+        }
+        Integrator::Bdpt(heuristic) => {
+            let Some(scratch) = scratch else {
+                return SampleResult::default();
+            };
+            let u = dims::camera(&mut sampler);
+            let ray = camera.generate_ray(x, y, u);
+            let raster = Vec2::new(x as f32 + u.x, y as f32 + u.y);
+            li_bdpt(
+                scene,
+                camera,
+                &ray,
+                raster,
+                settings,
+                heuristic,
+                scratch,
+                &mut sampler,
+                sink,
+            )
+        }
+        _ => {
+            let ray = camera.generate_ray(x, y, dims::camera(&mut sampler));
+            li(integrator, scene, &ray, settings, &mut sampler)
+        }
+    };
+    SampleResult {
+        l,
+        rays: sampler.rays,
     }
 }
 
@@ -268,14 +348,13 @@ impl PixelStats {
     }
 }
 
-/// Renders samples `first .. first + count` of pixel `(x, y)` and adds them, in sample order,
-/// to `stats`, with the number of rays they traced. Sample `i` is keyed by
-/// `(seed, y·width + x, i)`. Because each sample is added to the running sums in index order,
-/// rendering `0..n` in one call or in any sequence of consecutive ranges gives bit-identical
-/// sums: progressive and interrupted renders agree with one-shot renders, whatever the threads
-/// or tiles.
+/// Renders samples `first .. first + count` of pixel `(x, y)` with [`render_sample`] and
+/// adds them, in sample order, to `stats`, with the number of rays they traced. Because each
+/// sample is added to the running sums in index order, rendering `0..n` in one call or in any
+/// sequence of consecutive ranges gives bit-identical sums: progressive and interrupted
+/// renders agree with one-shot renders, whatever the threads or tiles.
 #[must_use]
-pub fn render_pixel(
+pub fn render_pixel<K: BdptSink>(
     integrator: Integrator,
     scene: &SceneView<'_>,
     camera: &Camera,
@@ -286,13 +365,24 @@ pub fn render_pixel(
     first: u32,
     count: u32,
     mut stats: PixelStats,
+    mut scratch: Option<&mut BdptScratch>,
+    sink: &mut K,
 ) -> PixelStats {
-    let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
     for i in first..first + count {
-        let mut sampler = RayCounting::new(IndependentSampler::new(seed, pixel, i));
-        let ray = camera.generate_ray(x, y, dims::camera(&mut sampler));
-        stats.add(li(integrator, scene, &ray, settings, &mut sampler));
-        stats.rays += u64::from(sampler.rays);
+        let r = render_sample(
+            integrator,
+            scene,
+            camera,
+            settings,
+            seed,
+            x,
+            y,
+            i,
+            scratch.as_deref_mut(),
+            sink,
+        );
+        stats.add(r.l);
+        stats.rays += u64::from(r.rays);
     }
     stats
 }

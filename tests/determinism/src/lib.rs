@@ -700,6 +700,8 @@ pub fn pixel(
         0,
         spp,
         PixelStats::default(),
+        None,
+        &mut ember_kernel::splat::NoSplats,
     );
     (stats.sum / spp as f32).to_array()
 }

@@ -1,0 +1,770 @@
+//! Bidirectional path tracing (Veach 1997, ch. 10; the structure of pbrt-v4's
+//! `BDPTIntegrator`): a camera subpath and a light subpath in fixed-size vertex arrays the
+//! caller provides ([`BdptScratch`]), every connection strategy `(s, t)` between them —
+//! `s = 0` (the camera path hits an emitter), `s = 1` (next-event estimation), `t = 1` (light
+//! tracing, splatted) and the general connections — each weighted by multiple importance
+//! sampling over all the strategies that could have made the same path.
+//!
+//! - **Densities are area densities.** Every vertex stores `pdf_fwd` (of being sampled from
+//!   its predecessor on its own subpath) and `pdf_rev` (from its successor, i.e. by the other
+//!   subpath's walk), both per unit area at the vertex ([`convert_density`]).
+//! - **MIS** uses pbrt-v4's recursive ratios (`MISWeight`): for the strategy `(s, t)`,
+//!   `w = 1 / (1 + Σ r_i^β)` where `r_i` are products of `pdf_rev / pdf_fwd` along each
+//!   subpath, with the connection's four reverse densities and the sampled endpoint replaced
+//!   for the strategy; zero densities (delta lobes) count as 1 and strategies that would
+//!   connect at a delta vertex are skipped. Balance (β = 1) or power (β = 2) heuristic.
+//! - **Delta lobes** (mirrors, smooth glass) are never connected; their vertices carry
+//!   `delta` and zero densities.
+//! - **Shading normals**: light-subpath BSDFs are evaluated in importance transport through
+//!   [`crate::bsdf::SurfaceBsdf`], which applies Veach's adjoint correction (pbrt-v4 omits it:
+//!   its issues #385, #526). Connection cosines use shading normals, densities geometric ones.
+//! - **Depth**: `max_depth` counts scattering vertices between camera and emitter, as
+//!   TinyRender's: strategy `(s, t)` makes a path with `s + t − 2` of them. At most
+//!   [`BDPT_MAX_DEPTH`]; `−1` is unbounded with Russian roulette on both subpaths (the fixed
+//!   rule, counted along each subpath), truncated at that cap.
+//! - **Roulette and MIS.** The survival probabilities are not part of the densities the MIS
+//!   weights use (the other subpath's walk would have its own); weights that sum to one over
+//!   the strategies of a path keep the estimate unbiased whatever densities they come from.
+
+use super::light_tracer::ray_to_camera;
+use super::{dims, PathSettings};
+use crate::bsdf::{Bsdf, Diffuse, SurfaceBsdf, TransportMode};
+use crate::camera::Camera;
+use crate::emitter::{emitter_pdf, pdf_le_direction, sample_emitter, sample_le};
+use crate::geometry::{spawn_ray, spawn_ray_to, Ray};
+use crate::math::Frame;
+use crate::sampler::Sampler;
+use crate::scene::SceneView;
+use crate::splat::SplatSink;
+use crate::Rgb;
+use glam::{Vec2, Vec3};
+
+/// The deepest paths BDPT renders: scattering vertices between camera and emitter. Larger
+/// `max_depth` values are refused by hosts ([`check_depth`]).
+pub const BDPT_MAX_DEPTH: u32 = 64;
+/// Vertices of a camera subpath: the camera, then up to `BDPT_MAX_DEPTH + 1` surface points
+/// (the last one may be an emitter, strategy `s = 0`).
+pub const CAMERA_PATH_VERTICES: usize = BDPT_MAX_DEPTH as usize + 2;
+/// Vertices of a light subpath: the point on the emitter and up to `BDPT_MAX_DEPTH` more.
+pub const LIGHT_PATH_VERTICES: usize = BDPT_MAX_DEPTH as usize + 1;
+
+/// Why a BDPT depth is not rendered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DepthTooLarge {
+    pub max_depth: i32,
+}
+
+impl core::fmt::Display for DepthTooLarge {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "maxDepth = {} is deeper than bidirectional path tracing supports ({}; its subpaths \
+             live in fixed-size arrays); use -1 (unbounded with Russian roulette, truncated \
+             there) or at most {}",
+            self.max_depth, BDPT_MAX_DEPTH, BDPT_MAX_DEPTH
+        )
+    }
+}
+
+/// Whether BDPT renders `max_depth` (−1 or at most [`BDPT_MAX_DEPTH`]).
+///
+/// # Errors
+/// For deeper bounded depths.
+pub fn check_depth(max_depth: i32) -> Result<(), DepthTooLarge> {
+    if max_depth <= BDPT_MAX_DEPTH as i32 {
+        Ok(())
+    } else {
+        Err(DepthTooLarge { max_depth })
+    }
+}
+
+/// The MIS heuristic combining the strategies.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MisHeuristic {
+    /// Weights proportional to the densities (pbrt-v4's BDPT).
+    Balance,
+    /// Weights proportional to the squared densities (Veach's recommendation; the default).
+    #[default]
+    Power,
+}
+
+impl MisHeuristic {
+    #[inline]
+    fn apply(self, r: f32) -> f32 {
+        match self {
+            Self::Balance => r,
+            Self::Power => r * r,
+        }
+    }
+}
+
+/// What a vertex is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum VertexKind {
+    /// The pinhole.
+    Camera,
+    /// The point a light subpath starts from, on an emitter.
+    Light,
+    /// A scattering point (possibly on an emitter, for `s = 0`).
+    #[default]
+    Surface,
+}
+
+/// One vertex of a subpath.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vertex {
+    pub kind: VertexKind,
+    /// The point, and where rays leave it (see `SurfaceInteraction::p_spawn`).
+    pub p: Vec3,
+    pub p_spawn: Vec3,
+    pub p_err: Vec3,
+    /// The BSDF at a surface vertex with its shading frame and geometric normal; for the
+    /// camera and light vertices only the frame (the camera's forward axis, the emitter's
+    /// shading normal) and the geometric normal are used.
+    pub bsdf: SurfaceBsdf,
+    /// Unit direction toward the previous vertex of its subpath (surface vertices).
+    pub wo: Vec3,
+    /// Throughput of the subpath up to and including this vertex's sampling density.
+    pub beta: Rgb,
+    /// Area density of this vertex, sampled from its predecessor on its subpath.
+    pub pdf_fwd: f32,
+    /// Area density of this vertex as the other subpath's walk would sample it.
+    pub pdf_rev: f32,
+    /// Scattered by a delta lobe (never connected).
+    pub delta: bool,
+    /// The emitter triangle (light vertices, and surface vertices on emitters).
+    pub triangle: u32,
+    /// Radiance emitted toward `wo` (surface vertices), or the emitter's `Ke` (light).
+    pub le: Rgb,
+    /// Camera subpath: the numbers of this vertex's `s = 1` connection.
+    pub u_select: f32,
+    pub u_light: Vec2,
+}
+
+impl Default for Vertex {
+    fn default() -> Self {
+        Self {
+            kind: VertexKind::Surface,
+            p: Vec3::ZERO,
+            p_spawn: Vec3::ZERO,
+            p_err: Vec3::ZERO,
+            bsdf: SurfaceBsdf::new(
+                Bsdf::Diffuse(Diffuse::new(Rgb::ZERO)),
+                Frame::from_normal(Vec3::Z),
+                Vec3::Z,
+            ),
+            wo: Vec3::Z,
+            beta: Rgb::ZERO,
+            pdf_fwd: 0.0,
+            pdf_rev: 0.0,
+            delta: false,
+            triangle: u32::MAX,
+            le: Rgb::ZERO,
+            u_select: 0.0,
+            u_light: Vec2::ZERO,
+        }
+    }
+}
+
+impl Vertex {
+    /// The geometric normal.
+    #[inline]
+    #[must_use]
+    pub fn ng(&self) -> Vec3 {
+        self.bsdf.ng
+    }
+
+    /// The shading normal.
+    #[inline]
+    #[must_use]
+    pub fn ns(&self) -> Vec3 {
+        self.bsdf.frame.n
+    }
+
+    /// On a surface (with a normal for cosines): every vertex but the pinhole.
+    #[inline]
+    #[must_use]
+    pub fn is_on_surface(&self) -> bool {
+        self.kind != VertexKind::Camera
+    }
+
+    /// Whether a connection may end here: the camera and emitter points always, a surface
+    /// point when its BSDF has a non-delta lobe.
+    #[inline]
+    #[must_use]
+    pub fn is_connectible(&self) -> bool {
+        match self.kind {
+            VertexKind::Camera | VertexKind::Light => true,
+            VertexKind::Surface => self.bsdf.flags().is_non_specular(),
+        }
+    }
+
+    /// The BSDF value for scattering from `wo` toward `next` (surface vertices).
+    #[inline]
+    fn f(&self, next: &Vertex, mode: TransportMode) -> Rgb {
+        let w = next.p - self.p;
+        let d2 = w.length_squared();
+        if d2 == 0.0 || d2.is_nan() {
+            return Rgb::ZERO;
+        }
+        self.bsdf.eval(self.wo, w / crate::math::sqrt(d2), mode)
+    }
+}
+
+/// Converts the solid-angle density `pdf` of a direction leaving `from` toward `to` into a
+/// density per unit area at `to`: `pdf · |cos θ_to| / d²` (no cosine at the pinhole).
+#[inline]
+#[must_use]
+pub fn convert_density(pdf: f32, from: &Vertex, to: &Vertex) -> f32 {
+    let w = to.p - from.p;
+    let d2 = w.length_squared();
+    if d2 == 0.0 || d2.is_nan() {
+        return 0.0;
+    }
+    let inv_d2 = 1.0 / d2;
+    let mut pdf = pdf;
+    if to.is_on_surface() {
+        pdf *= to.ng().dot(w * crate::math::sqrt(inv_d2)).abs();
+    }
+    pdf * inv_d2
+}
+
+/// Area density at `next` of the direction `v` would sample toward it, having been reached
+/// from `prev` (pbrt's `Vertex::PDF`): the camera's direction density, the emitter's
+/// emission density, or the BSDF's.
+#[must_use]
+pub fn vertex_pdf(camera: &Camera, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f32 {
+    if v.kind == VertexKind::Light {
+        return pdf_light(v, next);
+    }
+    let wn = next.p - v.p;
+    if wn.length_squared() == 0.0 {
+        return 0.0;
+    }
+    let wn = wn.normalize();
+    let pdf = match v.kind {
+        VertexKind::Camera => camera.pdf_we(wn).1 .0,
+        _ => {
+            let Some(prev) = prev else {
+                return 0.0;
+            };
+            let wp = prev.p - v.p;
+            if wp.length_squared() == 0.0 {
+                return 0.0;
+            }
+            v.bsdf.pdf(wp.normalize(), wn, TransportMode::Radiance).0
+        }
+    };
+    convert_density(pdf, v, next)
+}
+
+/// Area density at `next` of the emission from the emitter point `v` toward it
+/// (cosine-weighted about `v`'s shading normal; pbrt's `PDFLight`).
+#[must_use]
+pub fn pdf_light(v: &Vertex, next: &Vertex) -> f32 {
+    let w = next.p - v.p;
+    if w.length_squared() == 0.0 {
+        return 0.0;
+    }
+    let pdf = pdf_le_direction(v.ns(), w.normalize()).0;
+    convert_density(pdf, v, next)
+}
+
+/// Area density of choosing `v` as the start of a light subpath (pbrt's `PDFLightOrigin`):
+/// the emitter table's density for its triangle.
+#[must_use]
+pub fn pdf_light_origin(scene: &SceneView<'_>, v: &Vertex) -> f32 {
+    emitter_pdf(scene, v.triangle).0
+}
+
+/// The fixed-size subpaths of one BDPT sample, provided by the caller and reused from sample
+/// to sample (about 40 KiB: hosts keep one per worker thread).
+#[derive(Clone, Debug)]
+pub struct BdptScratch {
+    pub camera: [Vertex; CAMERA_PATH_VERTICES],
+    pub light: [Vertex; LIGHT_PATH_VERTICES],
+}
+
+impl Default for BdptScratch {
+    fn default() -> Self {
+        Self {
+            camera: [Vertex::default(); CAMERA_PATH_VERTICES],
+            light: [Vertex::default(); LIGHT_PATH_VERTICES],
+        }
+    }
+}
+
+/// Receives what a BDPT sample produces besides the radiance of its own pixel: the `t = 1`
+/// splats, and for debugging each strategy's unweighted contribution and weight.
+pub trait BdptSink: SplatSink {
+    /// Strategy `(s, t)` contributed `unweighted` (before its MIS `weight`) at `raster`.
+    #[inline]
+    fn strategy(&mut self, _s: u32, _t: u32, _raster: Vec2, _unweighted: Rgb, _weight: f32) {}
+}
+
+impl BdptSink for crate::splat::NoSplats {}
+impl BdptSink for crate::splat::SplatBuffer<'_> {}
+
+/// Walks a subpath from `ray`, filling `path[start..]` (`path[start - 1]` is its origin,
+/// already set). `pdf_dir` is the origin's solid-angle density of `ray.d`, `beta` the
+/// throughput carried along it. Returns the number of vertices in `path` afterwards.
+fn random_walk<S: Sampler>(
+    scene: &SceneView<'_>,
+    mut ray: Ray,
+    mut beta: Rgb,
+    mut pdf_dir: f32,
+    mode: TransportMode,
+    settings: &PathSettings,
+    sampler: &mut S,
+    path: &mut [Vertex],
+    start: usize,
+) -> usize {
+    let mut n = start;
+    while n < path.len() {
+        sampler.count_ray();
+        let Some(hit) = scene.intersect(&ray) else {
+            break;
+        };
+        let si = scene.interaction(&ray, &hit);
+        let bsdf = scene.bsdf_at(&si);
+        let mut v = Vertex {
+            kind: VertexKind::Surface,
+            p: si.p,
+            p_spawn: si.p_spawn,
+            p_err: si.p_err,
+            bsdf,
+            wo: si.wo,
+            beta,
+            pdf_fwd: 0.0,
+            pdf_rev: 0.0,
+            delta: false,
+            triangle: si.triangle,
+            le: scene.emitted(&si),
+            u_select: 0.0,
+            u_light: Vec2::ZERO,
+        };
+        v.pdf_fwd = convert_density(pdf_dir, &path[n - 1], &v);
+        // The numbers of this vertex, in the subpath's layout.
+        let (lobe, direction, roulette) = match mode {
+            TransportMode::Radiance => {
+                let u = dims::Bounce::draw(sampler);
+                (v.u_select, v.u_light) = (u.light_select, u.light);
+                (u.lobe, u.direction, u.roulette)
+            }
+            TransportMode::Importance => {
+                let u = dims::LightBounce::draw(sampler);
+                (u.lobe, u.direction, u.roulette)
+            }
+        };
+        path[n] = v;
+        n += 1;
+        if n == path.len() {
+            break;
+        }
+        let view = bsdf.seen_from(si.wo);
+        let Some(s) = view.sample(lobe, direction, mode) else {
+            break;
+        };
+        // The density of the reverse step: `wo` sampled from `wi` by the other walk.
+        let mut pdf_rev = bsdf.pdf(s.wi, si.wo, mode).0;
+        pdf_dir = s.pdf.0;
+        if s.flags.is_specular() {
+            path[n - 1].delta = true;
+            pdf_dir = 0.0;
+            pdf_rev = 0.0;
+        }
+        let (cur, prev) = (path[n - 1], path[n - 2]);
+        path[n - 2].pdf_rev = convert_density(pdf_rev, &cur, &prev);
+        beta *= s.weight;
+        // Vertex n − 1 is scattering vertex number n − 1 of this subpath.
+        if !settings.survives_roulette((n - 1) as u32, roulette, &mut beta) {
+            break;
+        }
+        ray = si.spawn_ray(s.wi);
+    }
+    n
+}
+
+/// Vertex capacity of a subpath for `max_depth` (`extra` more than the depth: 2 camera, 1
+/// light).
+fn capacity(settings: &PathSettings, extra: usize, array: usize) -> usize {
+    if settings.max_depth < 0 {
+        array
+    } else {
+        (settings.max_depth as usize + extra).min(array)
+    }
+}
+
+/// Generates the camera subpath for `ray` into `path`; returns its vertex count.
+fn camera_subpath<S: Sampler>(
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    ray: &Ray,
+    settings: &PathSettings,
+    sampler: &mut S,
+    path: &mut [Vertex; CAMERA_PATH_VERTICES],
+) -> usize {
+    let n = capacity(settings, 2, CAMERA_PATH_VERTICES);
+    let d = ray.d.normalize();
+    path[0] = Vertex {
+        kind: VertexKind::Camera,
+        p: camera.eye,
+        p_spawn: camera.eye,
+        p_err: Vec3::ZERO,
+        bsdf: SurfaceBsdf::new(
+            Bsdf::Diffuse(Diffuse::new(Rgb::ZERO)),
+            Frame::from_normal(camera.forward),
+            camera.forward,
+        ),
+        // The pinhole's We cosθ / (p_pos p_dir) is 1.
+        beta: Rgb::ONE,
+        ..Vertex::default()
+    };
+    let pdf_dir = camera.pdf_we(d).1 .0;
+    random_walk(
+        scene,
+        *ray,
+        Rgb::ONE,
+        pdf_dir,
+        TransportMode::Radiance,
+        settings,
+        sampler,
+        &mut path[..n],
+        1,
+    )
+}
+
+/// Generates a light subpath into `path`; returns its vertex count (0 without emitters).
+fn light_subpath<S: Sampler>(
+    scene: &SceneView<'_>,
+    settings: &PathSettings,
+    sampler: &mut S,
+    path: &mut [Vertex; LIGHT_PATH_VERTICES],
+) -> usize {
+    let n = capacity(settings, 1, LIGHT_PATH_VERTICES);
+    let u = dims::LightStart::draw(sampler);
+    let Some(e) = sample_le(scene, u.select, u.position, u.direction) else {
+        return 0;
+    };
+    let pt = &e.point;
+    path[0] = Vertex {
+        kind: VertexKind::Light,
+        p: pt.p,
+        p_spawn: pt.p,
+        p_err: pt.p_err,
+        bsdf: SurfaceBsdf::new(
+            Bsdf::Diffuse(Diffuse::new(Rgb::ZERO)),
+            Frame::from_normal(pt.n),
+            pt.ng,
+        ),
+        beta: pt.radiance,
+        pdf_fwd: pt.pdf.0,
+        triangle: pt.triangle,
+        le: pt.radiance,
+        ..Vertex::default()
+    };
+    if n <= 1 {
+        return 1;
+    }
+    let beta = pt.radiance * (pt.n.dot(e.w).abs() / (pt.pdf.0 * e.pdf_dir.0));
+    let ray = spawn_ray(pt.p, pt.p_err, pt.ng, e.w);
+    random_walk(
+        scene,
+        ray,
+        beta,
+        e.pdf_dir.0,
+        TransportMode::Importance,
+        settings,
+        sampler,
+        &mut path[..n],
+        1,
+    )
+}
+
+/// The geometry term `|cos θ₀||cos θ₁| / d²` between two surface vertices (shading normals)
+/// times their mutual visibility.
+fn geometry<S: Sampler>(scene: &SceneView<'_>, a: &Vertex, b: &Vertex, sampler: &mut S) -> f32 {
+    let d = a.p - b.p;
+    let d2 = d.length_squared();
+    if d2 == 0.0 || d2.is_nan() {
+        return 0.0;
+    }
+    let w = d / crate::math::sqrt(d2);
+    let g = a.ns().dot(w).abs() * b.ns().dot(w).abs() / d2;
+    if g == 0.0 {
+        return 0.0;
+    }
+    sampler.count_ray();
+    let shadow = spawn_ray_to(a.p_spawn, a.p_err, a.ng(), b.p_spawn, b.p_err, b.ng());
+    if scene.occluded(&shadow) {
+        0.0
+    } else {
+        g
+    }
+}
+
+/// One strategy's result: the contribution before its weight, the weight, and where it lands
+/// when it is a splat (`t = 1`).
+struct Connection {
+    l: Rgb,
+    weight: f32,
+    raster: Option<Vec2>,
+}
+
+/// Connects the first `s` light vertices and the first `t` camera vertices (pbrt's
+/// `ConnectBDPT`).
+fn connect<S: Sampler>(
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    light: &[Vertex],
+    cam: &[Vertex],
+    s: usize,
+    t: usize,
+    heuristic: MisHeuristic,
+    sampler: &mut S,
+) -> Option<Connection> {
+    let mut sampled: Option<Vertex> = None;
+    let mut raster = None;
+    let l = if s == 0 {
+        // The camera subpath ends on an emitter, seen from its front.
+        let pt = &cam[t - 1];
+        pt.beta * pt.le
+    } else if t == 1 {
+        let qs = &light[s - 1];
+        if !qs.is_connectible() {
+            return None;
+        }
+        let cs = camera.sample_wi(qs.p)?;
+        let cam_vertex = Vertex {
+            kind: VertexKind::Camera,
+            p: camera.eye,
+            p_spawn: camera.eye,
+            bsdf: cam[0].bsdf,
+            beta: Rgb::splat(cs.we / cs.pdf.0),
+            ..Vertex::default()
+        };
+        let mut l = qs.beta * cam_vertex.beta;
+        if qs.kind == VertexKind::Surface {
+            l *= qs.f(&cam_vertex, TransportMode::Importance);
+        } else if qs.ns().dot(cs.wi) <= 0.0 || qs.ng().dot(cs.wi) <= 0.0 {
+            // An emitter point seen from behind emits nothing toward the camera.
+            return None;
+        }
+        if qs.is_on_surface() {
+            l *= qs.ns().dot(cs.wi).abs();
+        }
+        if l == Rgb::ZERO {
+            return None;
+        }
+        sampler.count_ray();
+        if scene.occluded(&ray_to_camera(qs.p_spawn, qs.p_err, qs.ng(), &cs)) {
+            return None;
+        }
+        raster = Some(cs.raster);
+        sampled = Some(cam_vertex);
+        l
+    } else if s == 1 {
+        let pt = &cam[t - 1];
+        if !pt.is_connectible() {
+            return None;
+        }
+        let es = sample_emitter(scene, pt.u_select, pt.u_light)?;
+        let mut light_vertex = Vertex {
+            kind: VertexKind::Light,
+            p: es.p,
+            p_spawn: es.p,
+            p_err: es.p_err,
+            bsdf: SurfaceBsdf::new(
+                Bsdf::Diffuse(Diffuse::new(Rgb::ZERO)),
+                Frame::from_normal(es.n),
+                es.ng,
+            ),
+            triangle: es.triangle,
+            le: es.radiance,
+            ..Vertex::default()
+        };
+        let to_pt = pt.p - es.p;
+        let d2 = to_pt.length_squared();
+        if d2 == 0.0 || d2.is_nan() {
+            return None;
+        }
+        let w = to_pt / crate::math::sqrt(d2);
+        let cos_light = es.n.dot(w);
+        if cos_light <= 0.0 || es.ng.dot(w) <= 0.0 {
+            return None;
+        }
+        // Le / p_ω at pt, with p_ω = p_A d² / cos θ_light.
+        let pdf_w = es.pdf.to_solid_angle(d2, cos_light).0;
+        light_vertex.beta = es.radiance / pdf_w;
+        light_vertex.pdf_fwd = pdf_light_origin(scene, &light_vertex);
+        let l = pt.beta
+            * pt.f(&light_vertex, TransportMode::Radiance)
+            * light_vertex.beta
+            * pt.ns().dot(-w).abs();
+        if l == Rgb::ZERO {
+            return None;
+        }
+        sampler.count_ray();
+        let shadow = spawn_ray_to(pt.p_spawn, pt.p_err, pt.ng(), es.p, es.p_err, es.ng);
+        if scene.occluded(&shadow) {
+            return None;
+        }
+        sampled = Some(light_vertex);
+        l
+    } else {
+        let (qs, pt) = (&light[s - 1], &cam[t - 1]);
+        if !qs.is_connectible() || !pt.is_connectible() {
+            return None;
+        }
+        let l = qs.beta
+            * qs.f(pt, TransportMode::Importance)
+            * pt.f(qs, TransportMode::Radiance)
+            * pt.beta;
+        if l == Rgb::ZERO {
+            return None;
+        }
+        let g = geometry(scene, qs, pt, sampler);
+        l * g
+    };
+    if l == Rgb::ZERO || !crate::math::is_finite(l) {
+        return None;
+    }
+    let weight = mis_weight(scene, camera, light, cam, sampled.as_ref(), s, t, heuristic);
+    Some(Connection { l, weight, raster })
+}
+
+/// The MIS weight of strategy `(s, t)` for the path it made (pbrt-v4's `MISWeight`, with
+/// the heuristic's exponent): `sampled` is the endpoint a `t = 1` or `s = 1` strategy sampled
+/// in place of `cam[0]` or `light[0]`.
+#[must_use]
+pub fn mis_weight(
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    light: &[Vertex],
+    cam: &[Vertex],
+    sampled: Option<&Vertex>,
+    s: usize,
+    t: usize,
+    heuristic: MisHeuristic,
+) -> f32 {
+    if s + t == 2 {
+        return 1.0;
+    }
+    // The strategy's vertices: the sampled endpoint replaces the subpath's first vertex.
+    let light_at = |i: usize| -> &Vertex {
+        match sampled {
+            Some(v) if s == 1 && i == 0 => v,
+            _ => &light[i],
+        }
+    };
+    let cam_at = |i: usize| -> &Vertex {
+        match sampled {
+            Some(v) if t == 1 && i == 0 => v,
+            _ => &cam[i],
+        }
+    };
+    let qs = (s > 0).then(|| light_at(s - 1));
+    let pt = (t > 0).then(|| cam_at(t - 1));
+    let qs_minus = (s > 1).then(|| light_at(s - 2));
+    let pt_minus = (t > 1).then(|| cam_at(t - 2));
+    // The four reverse densities the connection changes.
+    let pt_rev = pt.map(|pt| match qs {
+        Some(qs) => vertex_pdf(camera, qs, qs_minus, pt),
+        None => pdf_light_origin(scene, pt),
+    });
+    let pt_minus_rev = pt_minus.map(|ptm| match qs {
+        Some(qs) => vertex_pdf(camera, pt.unwrap_or(ptm), Some(qs), ptm),
+        None => pdf_light(pt.unwrap_or(ptm), ptm),
+    });
+    let qs_rev = qs.map(|qs| vertex_pdf(camera, pt.unwrap_or(qs), pt_minus, qs));
+    let qs_minus_rev = qs_minus.map(|qsm| vertex_pdf(camera, qs.unwrap_or(qsm), pt, qsm));
+    let remap0 = |f: f32| if f != 0.0 { f } else { 1.0 };
+    // Camera side: vertices t − 1 down to 1 (the pinhole cannot be hit).
+    let cam_rev = |i: usize| -> f32 {
+        if i + 1 == t {
+            pt_rev.unwrap_or(0.0)
+        } else if i + 2 == t {
+            pt_minus_rev.unwrap_or(0.0)
+        } else {
+            cam_at(i).pdf_rev
+        }
+    };
+    // The connection's endpoints are connectible, so not delta for this strategy.
+    let cam_delta = |i: usize| i + 1 != t && cam_at(i).delta;
+    let mut sum = 0.0f32;
+    let mut ri = 1.0f32;
+    for i in (1..t).rev() {
+        ri *= remap0(cam_rev(i)) / remap0(cam_at(i).pdf_fwd);
+        if !cam_delta(i) && !cam_delta(i - 1) {
+            sum += heuristic.apply(ri);
+        }
+    }
+    let light_rev = |i: usize| -> f32 {
+        if i + 1 == s {
+            qs_rev.unwrap_or(0.0)
+        } else if i + 2 == s {
+            qs_minus_rev.unwrap_or(0.0)
+        } else {
+            light_at(i).pdf_rev
+        }
+    };
+    let light_delta = |i: usize| i + 1 != s && light_at(i).delta;
+    ri = 1.0;
+    for i in (0..s).rev() {
+        ri *= remap0(light_rev(i)) / remap0(light_at(i).pdf_fwd);
+        // Area emitters are never delta lights.
+        let delta_before = i > 0 && light_delta(i - 1);
+        if !light_delta(i) && !delta_before {
+            sum += heuristic.apply(ri);
+        }
+    }
+    let w = 1.0 / (1.0 + sum);
+    if w.is_finite() {
+        w
+    } else {
+        0.0
+    }
+}
+
+/// One BDPT sample for the camera ray `ray`: returns the MIS-weighted radiance of the
+/// strategies with `t ≥ 2` (the sample's own pixel) and splats those with `t = 1` into
+/// `sink`, which also sees every strategy's contribution and weight ([`BdptSink`]).
+/// `raster` is the camera sample's film position (for the strategy images). Dimensions: the
+/// camera sample, [`dims::Bounce`] per camera vertex (its emitter numbers serve the `s = 1`
+/// connection there), then [`dims::LightStart`] and [`dims::LightBounce`] per light vertex.
+pub fn li_bdpt<S: Sampler, K: BdptSink>(
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    ray: &Ray,
+    raster: Vec2,
+    settings: &PathSettings,
+    heuristic: MisHeuristic,
+    scratch: &mut BdptScratch,
+    sampler: &mut S,
+    sink: &mut K,
+) -> Rgb {
+    let n_cam = camera_subpath(scene, camera, ray, settings, sampler, &mut scratch.camera);
+    let n_light = light_subpath(scene, settings, sampler, &mut scratch.light);
+    let (cam, light) = (&scratch.camera[..n_cam], &scratch.light[..n_light]);
+    let mut l = Rgb::ZERO;
+    for t in 1..=n_cam {
+        for s in 0..=n_light {
+            let depth = s as i64 + t as i64 - 2;
+            if (s == 1 && t == 1) || depth < 0 || !settings.allows(depth as u32) {
+                continue;
+            }
+            let Some(c) = connect(scene, camera, light, cam, s, t, heuristic, sampler) else {
+                continue;
+            };
+            let at = c.raster.unwrap_or(raster);
+            sink.strategy(s as u32, t as u32, at, c.l, c.weight);
+            let weighted = c.l * c.weight;
+            if t == 1 {
+                sink.splat(at, weighted);
+            } else {
+                l += weighted;
+            }
+        }
+    }
+    l
+}
