@@ -5,17 +5,24 @@
 //!   `u` in {0, 1e-7, `f32::MIN_POSITIVE`, 0.5, 1 − 2⁻²⁴} in every dimension must return a
 //!   finite unit direction with a finite positive pdf, or no sample; emitter points must lie on
 //!   their triangle within the error bound the kernel reports for them.
-//! - Extreme materials: Phong exponents 0, 1, 1e6, `Kd + Ks` far above 1, `Kd = Ks = 0`.
+//! - Extreme materials: Phong exponents 0, 1, 1e6, `Kd + Ks` far above 1, `Kd = Ks = 0`;
+//!   conductors and dielectrics at alpha 0 and 1e-4 (effectively smooth: the delta path),
+//!   1e-3 exactly (the narrowest rough lobe) and 1, dielectrics with eta 1, 1 ± 1e-4, 1/1.5,
+//!   1.5 and 10, black Ks and Tf; outgoing directions from normal to exactly on the horizon
+//!   and just below it (inside a dielectric), uc and u extreme independently, both transport
+//!   modes.
 //! - Geometry at extreme scales: unnormalised ray directions from 1e-6 to 1e6 long against
 //!   triangles from 1e-6 to 1e6 wide; random walks and shadow rays inside a closed box scaled
 //!   by 1e-4 … 1e4 and translated by 1e5 never escape and never see a false shadow.
 //! - Property tests (proptest, fixed seed so CI is reproducible; set `PROPTEST_RNG_SEED` to
 //!   explore other cases) over random directions and parameters: `eval`/`pdf` finite and
-//!   non-negative, `sample` consistent with `pdf` and `eval`, reciprocity, Monte Carlo albedo at
-//!   most 1 after the energy clamp, `Frame` round trips, and the watertight triangle test never
-//!   missing a ray aimed at an interior point or at a shared edge.
+//!   non-negative, `sample` consistent with `pdf` and `eval`, reciprocity (generalised for
+//!   dielectric transmission), Monte Carlo albedo at most 1 after the energy clamp (at most Ks
+//!   for a conductor, 1 in importance transport for a dielectric), `Frame` round trips, and
+//!   the watertight triangle test never missing a ray aimed at an interior point or at a
+//!   shared edge.
 
-use ember_kernel::bsdf::{Bsdf, Diffuse, Phong, TransportMode};
+use ember_kernel::bsdf::{Bsdf, Conductor, Dielectric, Diffuse, Phong, TransportMode};
 use ember_kernel::bvh::Bvh;
 use ember_kernel::emitter::{emitter_pdf, sample_emitter};
 use ember_kernel::geometry::intersect_triangle;
@@ -82,7 +89,38 @@ fn extreme_bsdfs() -> Vec<(String, Bsdf)> {
             Bsdf::Phong(Phong::new(Vec3::ZERO, Vec3::ZERO, ns)),
         ));
     }
+    v.extend(extreme_microfacet_bsdfs());
     v
+}
+
+/// Roughnesses at the edges: smooth (0), effectively smooth (1e-4 < 1e-3: the delta path), the
+/// narrowest rough lobe (1e-3 exactly), a narrow and a very wide one.
+const ALPHAS: [f32; 5] = [0.0, 1e-4, 1e-3, 0.05, 1.0];
+
+/// Conductors and dielectrics at the edges of their parameter space.
+fn extreme_microfacet_bsdfs() -> Vec<(String, Bsdf)> {
+    let mut v = Vec::new();
+    for alpha in ALPHAS {
+        for ks in [Vec3::ONE, Vec3::ZERO, Vec3::new(1.0, 0.0, 1e-30)] {
+            v.push((
+                format!("Conductor Ks={ks} alpha={alpha}"),
+                Bsdf::Conductor(Conductor::new(ks, alpha)),
+            ));
+        }
+        for eta in [1.0f32, 1.0001, 0.9999, 1.5, 1.0 / 1.5, 10.0] {
+            for tf in [Vec3::ONE, Vec3::ZERO] {
+                v.push((
+                    format!("Dielectric eta={eta} Tf={tf} alpha={alpha}"),
+                    Bsdf::Dielectric(Dielectric::new(eta, tf, alpha)),
+                ));
+            }
+        }
+    }
+    v
+}
+
+fn is_opaque(b: &Bsdf) -> bool {
+    !matches!(b, Bsdf::Dielectric(_))
 }
 
 /// Outgoing directions from normal incidence to the most grazing ones f32 can represent.
@@ -95,6 +133,14 @@ fn extreme_wos() -> Vec<Vec3> {
         Vec3::new(1.0, 0.0, 1e-7).normalize(),
         Vec3::new(0.0, -1.0, f32::MIN_POSITIVE),
         Vec3::new(1.0, 0.0, 1e-20),
+        // Exactly on the horizon, then just below it and further (inside a dielectric, behind
+        // an opaque surface).
+        Vec3::new(0.6, 0.8, 0.0),
+        Vec3::new(1.0, 0.0, -1e-7).normalize(),
+        Vec3::new(0.0, 1.0, -f32::MIN_POSITIVE),
+        outgoing(-1e-4, 0.3),
+        outgoing(-0.7, 1.1),
+        -Vec3::Z,
     ]
 }
 
@@ -151,7 +197,7 @@ fn warps_survive_extreme_uniforms() {
 
 #[test]
 fn bsdf_samplers_survive_extreme_uniforms_and_materials() {
-    let mut samples = 0;
+    let (mut samples, mut outside_support) = (0, 0);
     for (name, bsdf) in extreme_bsdfs() {
         if let Bsdf::Phong(p) | Bsdf::Mixture(p) = bsdf {
             assert!(
@@ -165,36 +211,146 @@ fn bsdf_samplers_survive_extreme_uniforms_and_materials() {
                 p.specular_weight
             );
         }
+        let phong_family = matches!(bsdf, Bsdf::Diffuse(_) | Bsdf::Phong(_) | Bsdf::Mixture(_));
         for wo in extreme_wos() {
-            for u in extreme_2d() {
-                let Some(s) = bsdf.sample(wo, u.x, u, MODE) else {
-                    continue;
-                };
-                samples += 1;
-                let ctx = format!("{name} wo={wo} u={u}: {s:?}");
-                assert!(unit(s.wi) && s.wi.z > 0.0, "{ctx}");
-                assert!(s.pdf.0.is_finite() && s.pdf.0 > 0.0, "{ctx}");
-                assert!(s.f.is_finite() && s.f.min_element() >= 0.0, "{ctx}");
-                let w = s.weight();
-                assert!(w.is_finite() && w.min_element() >= 0.0, "{ctx}: weight {w}");
-                assert_eq!(s.pdf, bsdf.pdf(wo, s.wi, MODE), "{ctx}");
-                assert_eq!(s.f, bsdf.eval(wo, s.wi, MODE), "{ctx}");
-            }
-            // eval and pdf on the extreme directions themselves (both ways round).
-            for wi in extreme_wos() {
-                for (a, b) in [(wo, wi), (wi, wo)] {
-                    let f = bsdf.eval(a, b, MODE);
-                    let p = bsdf.pdf(a, b, MODE).0;
-                    assert!(
-                        f.is_finite() && f.min_element() >= 0.0,
-                        "{name} {a} {b}: {f}"
-                    );
-                    assert!(p.is_finite() && p >= 0.0, "{name} {a} {b}: pdf {p}");
+            for mode in [TransportMode::Radiance, TransportMode::Importance] {
+                // The lobe number uc and the direction u are independent dimensions: every
+                // combination of extremes (uc = 0 and 1 − 2⁻²⁴ pick the first and last lobes).
+                for uc in US {
+                    for u in extreme_2d() {
+                        let Some(s) = bsdf.sample(wo, uc, u, mode) else {
+                            continue;
+                        };
+                        samples += 1;
+                        let ctx = format!("{name} {mode:?} wo={wo} uc={uc} u={u}: {s:?}");
+                        outside_support += usize::from(check_sample(&bsdf, wo, &s, mode, &ctx));
+                        if phong_family {
+                            assert_eq!(s.pdf, bsdf.pdf(wo, s.wi, mode), "{ctx}");
+                            assert_eq!(s.f, bsdf.eval(wo, s.wi, mode), "{ctx}");
+                        }
+                    }
+                }
+                // eval and pdf on the extreme directions themselves (both ways round).
+                for wi in extreme_wos() {
+                    for (a, b) in [(wo, wi), (wi, wo)] {
+                        let f = bsdf.eval(a, b, mode);
+                        let p = bsdf.pdf(a, b, mode).0;
+                        assert!(
+                            f.is_finite() && f.min_element() >= 0.0,
+                            "{name} {a} {b}: {f}"
+                        );
+                        assert!(p.is_finite() && p >= 0.0, "{name} {a} {b}: pdf {p}");
+                        if is_opaque(&bsdf) && (a.z <= 0.0 || b.z <= 0.0) {
+                            assert_eq!((f, p), (Vec3::ZERO, 0.0), "{name} {a} {b}");
+                        }
+                        if bsdf.flags().is_specular() || a.z == 0.0 || b.z == 0.0 {
+                            assert_eq!((f, p), (Vec3::ZERO, 0.0), "{name} {a} {b}");
+                        }
+                    }
                 }
             }
         }
     }
-    assert!(samples > 1000, "only {samples} samples were produced");
+    assert!(samples > 50_000, "only {samples} samples were produced");
+    // Ill-conditioned near-index-matched samples: few. |η′wi + wo| ≥ |η′ − 1|, so only the
+    // η = 1 ± 1e-4 dielectrics can have them; u.y = 1 − 2⁻²⁴ picks microfacets grazing wo on
+    // purpose, so they are more frequent here (1e-3) than under random uniforms (1e-4).
+    assert!(
+        outside_support * 100 < samples,
+        "{outside_support} of {samples}"
+    );
+    println!("{samples} samples, {outside_support} just outside the support (see check_sample)");
+}
+
+/// What every sample of every BSDF must satisfy, whatever the inputs: a finite unit direction
+/// off the horizon, on the side its flags say (opaque BSDFs: above the surface, and only for
+/// wo above it), finite positive pdf, finite non-negative f and weight, flags among the BSDF's,
+/// eta 1 for reflection and η′ (finite, positive) for transmission; a delta sample has no
+/// eval/pdf, a non-delta one has a finite `eval()` and a finite `pdf()`, positive unless the
+/// half vector is ill-conditioned.
+///
+/// Ill-conditioned: `pdf()` rebuilds the microfacet normal from m ∝ η′wi + wo. Through a
+/// nearly index-matched boundary (η = 1 ± 1e-4) wi ≈ −wo and |η′wi + wo| ≈ |η′ − 1| ≈ 1e-4, so
+/// the f32 rounding of wi alone (6e-8) turns m by ~6e-4 rad, and a sample through a microfacet
+/// grazing wo can land just outside the support (~1e-4 of the samples at η 1.0001, alpha 1;
+/// 1e-5 at η 1.001; none at η ≥ 1.01 in 200 000 samples). Those (|η′wi + wo| < 1e-2) may have
+/// `pdf() = 0`; the function returns whether the sample was such a case.
+fn check_sample(
+    bsdf: &Bsdf,
+    wo: Vec3,
+    s: &ember_kernel::bsdf::BsdfSample,
+    mode: TransportMode,
+    ctx: &str,
+) -> bool {
+    assert!(unit(s.wi) && s.wi.z != 0.0, "{ctx}");
+    assert!(s.pdf.0.is_finite() && s.pdf.0 > 0.0, "{ctx}");
+    assert!(s.f.is_finite() && s.f.min_element() >= 0.0, "{ctx}");
+    let w = s.weight();
+    assert!(w.is_finite() && w.min_element() >= 0.0, "{ctx}: weight {w}");
+    assert!(
+        bsdf.flags().contains(s.flags),
+        "{ctx}: flags {:?}",
+        bsdf.flags()
+    );
+    // Signs, not the product: wo.z·wi.z underflows to −0 for wo.z = MIN_POSITIVE.
+    let transmitted = (s.wi.z < 0.0) != (wo.z < 0.0);
+    assert_eq!(transmitted, s.flags.is_transmission(), "{ctx}");
+    if is_opaque(bsdf) {
+        assert!(wo.z > 0.0 && s.wi.z > 0.0, "{ctx}");
+    }
+    if transmitted {
+        assert!(s.eta.is_finite() && s.eta > 0.0, "{ctx}");
+    } else {
+        assert_eq!(s.eta, 1.0, "{ctx}");
+    }
+    let (f, p) = (bsdf.eval(wo, s.wi, mode), bsdf.pdf(wo, s.wi, mode).0);
+    assert!(f.is_finite() && f.min_element() >= 0.0, "{ctx}: eval {f}");
+    assert!(p.is_finite() && p >= 0.0, "{ctx}: pdf {p}");
+    if s.flags.is_specular() {
+        assert_eq!((f, p), (Vec3::ZERO, 0.0), "{ctx}");
+        assert!(s.pdf.0 <= 1.0, "{ctx}: a lobe probability above 1");
+        return false;
+    }
+    let ill_conditioned =
+        transmitted && (s.wi.as_dvec3() * f64::from(s.eta) + wo.as_dvec3()).length() < 1e-2;
+    assert!(
+        p > 0.0 || ill_conditioned,
+        "{ctx}: pdf() = 0 at a sampled direction"
+    );
+    ill_conditioned && p == 0.0
+}
+
+/// Black conductors and transmissions: no NaN (0/0) anywhere, nothing scattered where nothing
+/// can be.
+#[test]
+fn black_microfacets_have_no_nan_anywhere() {
+    for alpha in ALPHAS {
+        let conductor = Bsdf::Conductor(Conductor::new(Vec3::ZERO, alpha));
+        let opaque_glass = Bsdf::Dielectric(Dielectric::new(1.5, Vec3::ZERO, alpha));
+        for wo in extreme_wos() {
+            for mode in [TransportMode::Radiance, TransportMode::Importance] {
+                for uc in US {
+                    for u in extreme_2d() {
+                        let ctx = format!("alpha={alpha} wo={wo} uc={uc} u={u}");
+                        assert!(conductor.sample(wo, uc, u, mode).is_none(), "{ctx}");
+                        if let Some(s) = opaque_glass.sample(wo, uc, u, mode) {
+                            assert!(!s.flags.is_transmission(), "{ctx}: {s:?}");
+                            let _ = check_sample(&opaque_glass, wo, &s, mode, &ctx);
+                        }
+                    }
+                }
+                for wi in extreme_wos() {
+                    assert_eq!(conductor.eval(wo, wi, mode), Vec3::ZERO);
+                    assert!(conductor.pdf(wo, wi, mode).0.is_finite());
+                    let f = opaque_glass.eval(wo, wi, mode);
+                    assert!(f.is_finite(), "alpha={alpha} {wo} {wi}: {f}");
+                    if wo.z * wi.z < 0.0 {
+                        assert_eq!(f, Vec3::ZERO);
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// `Kd = Ks = 0`: TinyRender's specular weight is 0/0; ember's must not leak a NaN anywhere,
@@ -218,14 +374,107 @@ fn black_phong_has_no_nan_anywhere() {
     }
 }
 
+/// The white GGX reflection D(m)·G₂·F/(4|cosθₒ cosθᵢ|) in f64 (F = 1 for a conductor, the
+/// exact Fresnel of η for a dielectric), written independently of the kernel.
+fn ggx_reflection_f64(alpha: f64, eta: Option<f64>, wo: DVec3, wi: DVec3) -> f64 {
+    let m = (wo + wi).normalize();
+    let m = if m.z < 0.0 { -m } else { m };
+    let a2 = alpha * alpha;
+    let d = {
+        let cos2 = m.z * m.z;
+        let sin2 = 1.0 - cos2;
+        a2 / (std::f64::consts::PI * (sin2 + a2 * cos2).powi(2))
+    };
+    let lambda = |w: DVec3| {
+        let cos2 = w.z * w.z;
+        0.5 * (((cos2 + a2 * (1.0 - cos2)) / cos2).sqrt() - 1.0)
+    };
+    let g = 1.0 / (1.0 + lambda(wo) + lambda(wi));
+    let f = eta.map_or(1.0, |eta| {
+        let c = wo.dot(m).abs();
+        let e = if wo.z > 0.0 { eta } else { 1.0 / eta };
+        let g2 = e * e - 1.0 + c * c;
+        if g2 <= 0.0 {
+            return 1.0;
+        }
+        let g = g2.sqrt();
+        let a = (g - c) / (g + c);
+        let b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+        0.5 * a * a * (1.0 + b * b)
+    });
+    d * g * f / (4.0 * (wo.z * wi.z).abs())
+}
+
+/// Microfacet BSDFs at grazing pairs keep their value instead of turning into NaN or into the
+/// wrong lobe:
+/// - the mirror-symmetric pair wo = (1, 0, c), wi = (−1, 0, c) has the half vector +z,
+///   G/c² → 1/(αc) (Λ ≈ α tanθ/2) and F → 1, so f·cosθᵢ → D(z)/(4α) = 1/(4πα³), to 1e-3 for
+///   c from 1e-8 to 1e-18 (the remaining O(c) terms are far below it). Past that |wo + wi|² =
+///   4c² is subnormal and the half vector cannot be normalised accurately (then not at all):
+///   the value must still be finite and non-negative (the kernel once returned NaN once c²
+///   underflowed, c < 4e-23);
+/// - pairs whose cosines are 1e-25 and 1e-21 (their product underflows to 0; a dielectric once
+///   classified such a same-side pair as a transmission by the sign of the product) match the
+///   f64 formula to 1e-4 (their half vector is far from the horizon-parallel cancellation).
+#[test]
+fn grazing_pairs_keep_their_value() {
+    for alpha in [1e-3f32, 0.05, 0.5, 1.0] {
+        let limit = 1.0 / (4.0 * std::f64::consts::PI * f64::from(alpha).powi(3));
+        for (eta, bsdf) in [
+            (None, Bsdf::Conductor(Conductor::new(Vec3::ONE, alpha))),
+            (
+                Some(1.5),
+                Bsdf::Dielectric(Dielectric::new(1.5, Vec3::ONE, alpha)),
+            ),
+        ] {
+            let sides: &[f32] = if eta.is_some() { &[1.0, -1.0] } else { &[1.0] };
+            for mode in [TransportMode::Radiance, TransportMode::Importance] {
+                for &side in sides {
+                    for k in 8..=38 {
+                        let c = 10f32.powi(-k);
+                        let wo = Vec3::new(1.0, 0.0, side * c);
+                        let wi = Vec3::new(-1.0, 0.0, side * c);
+                        let f = bsdf.eval(wo, wi, mode);
+                        let ctx = format!("{bsdf:?} side {side} c=1e-{k}: f = {f}");
+                        assert!(f.is_finite() && f.min_element() >= 0.0, "{ctx}");
+                        if k <= 18 {
+                            let value = f64::from(f.x) * f64::from(c);
+                            assert!((value - limit).abs() <= 1e-3 * limit, "{ctx}: {limit}");
+                        }
+                    }
+                    let wo = Vec3::new(1.0, 0.0, side * 1e-25);
+                    let wi = Vec3::new(0.0, 1.0, side * 1e-21);
+                    assert_eq!(wo.z * wi.z, 0.0, "the product must underflow");
+                    for (a, b) in [(wo, wi), (wi, wo)] {
+                        let f = f64::from(bsdf.eval(a, b, mode).x);
+                        let want =
+                            ggx_reflection_f64(f64::from(alpha), eta, a.as_dvec3(), b.as_dvec3());
+                        assert!(
+                            (f - want).abs() <= 1e-4 * want,
+                            "{bsdf:?} {a} {b}: {f} vs f64 {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Monte Carlo albedo (mean weight f·cosθᵢ/pdf) with its standard error, per channel.
+/// Dielectrics in importance transport (which carries power: radiance is scaled by 1/η′²),
+/// everything else in radiance transport.
 fn mc_albedo(bsdf: &Bsdf, wo: Vec3, n: u32, seed: u64) -> (DVec3, DVec3) {
+    let mode = if is_opaque(bsdf) {
+        MODE
+    } else {
+        TransportMode::Importance
+    };
     let (mut sum, mut sum2) = (DVec3::ZERO, DVec3::ZERO);
     for i in 0..n {
         let mut sampler = IndependentSampler::new(seed, u64::from(i), 0);
         let uc = sampler.next_1d();
         let u = sampler.next_2d();
-        if let Some(s) = bsdf.sample(wo, uc, u, MODE) {
+        if let Some(s) = bsdf.sample(wo, uc, u, mode) {
             let w = s.weight().as_dvec3();
             sum += w;
             sum2 += w * w;
@@ -239,11 +488,18 @@ fn mc_albedo(bsdf: &Bsdf, wo: Vec3, n: u32, seed: u64) -> (DVec3, DVec3) {
 
 /// The energy clamp holds at the extremes: `Kd + Ks` up to 4 per channel, exponents 0 to 1e6.
 /// 4 standard errors, one-sided: the clamp makes the true albedo at most 0.99 (and exactly 1
-/// for the diffuse Kd = 1, whose weight is 1 up to f32 rounding: hence the 1e-6).
+/// for the diffuse Kd = 1, whose weight is 1 up to f32 rounding: hence the 1e-6). Conductors
+/// (Ks ≤ 1 here) and dielectrics (Tf ≤ 1, importance transport) conserve energy at every
+/// roughness and index, from both sides.
 #[test]
 fn extreme_materials_reflect_at_most_everything() {
     for (name, bsdf) in extreme_bsdfs() {
-        for (k, wo) in extreme_wos().into_iter().enumerate().take(4) {
+        let wos = extreme_wos();
+        let mut chosen: Vec<Vec3> = wos[..4].to_vec();
+        if !is_opaque(&bsdf) {
+            chosen.extend([outgoing(-0.7, 1.1), outgoing(-1e-4, 0.3)]);
+        }
+        for (k, wo) in chosen.into_iter().enumerate() {
             let (mean, se) = mc_albedo(&bsdf, wo, 20_000, 77 + k as u64);
             for c in 0..3 {
                 assert!(
@@ -662,6 +918,123 @@ fn bsdf() -> impl Strategy<Value = Bsdf> {
     })
 }
 
+/// Roughness: smooth, effectively smooth, the threshold itself, 1, uniform and log-uniform.
+fn alpha() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        Just(0.0f32),
+        Just(1e-4f32),
+        Just(9.99e-4f32),
+        Just(1e-3f32),
+        Just(1.0f32),
+        1e-3f32..=1.0,
+        (-4.0f32..=0.0).prop_map(|e| 10f32.powf(e)),
+    ]
+}
+
+/// Relative index: index-matched, nearly so, glass from both sides, and uniform on either
+/// side of 1 up to 3.
+fn eta() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        Just(1.0f32),
+        Just(1.0001f32),
+        Just(0.9999f32),
+        Just(1.5f32),
+        Just(1.0f32 / 1.5),
+        1.0f32..=3.0,
+        (1.0f32..=3.0).prop_map(|e| 1.0 / e),
+    ]
+}
+
+/// A transmission tint in [0, 1]³.
+fn tint() -> impl Strategy<Value = Vec3> {
+    let c = prop_oneof![1 => Just(0.0f32), 1 => Just(1.0f32), 6 => 0.0f32..=1.0];
+    (c.clone(), c.clone(), c).prop_map(|(r, g, b)| Vec3::new(r, g, b))
+}
+
+/// A conductor (Ks up to 2 per channel) or a dielectric.
+fn microfacet_bsdf() -> impl Strategy<Value = Bsdf> {
+    (any::<bool>(), reflectance(), tint(), alpha(), eta()).prop_map(
+        |(conductor, ks, tf, alpha, eta)| {
+            if conductor {
+                Bsdf::Conductor(Conductor::new(ks, alpha))
+            } else {
+                Bsdf::Dielectric(Dielectric::new(eta, tf, alpha))
+            }
+        },
+    )
+}
+
+fn mode() -> impl Strategy<Value = TransportMode> {
+    prop_oneof![
+        Just(TransportMode::Radiance),
+        Just(TransportMode::Importance)
+    ]
+}
+
+/// A lobe number: uniform, or one of the two extremes.
+fn lobe_number() -> impl Strategy<Value = f32> {
+    prop_oneof![Just(0.0f32), Just(ONE_MINUS_EPSILON), 0.0f32..1.0]
+}
+
+/// Twice the largest relative change of `value` when `wi` moves by 4e-6 rad in one of four
+/// directions perpendicular to it (as in bsdf.rs: `pdf()`/`eval()` rebuild the half vector
+/// from an f32 wi, rounded by a few ulps, so they differ from the sampler's values by their
+/// own variation over a neighbourhood of wi). Twice: four probe directions can miss the
+/// steepest one (one case in 1.2e5 random ones was 1.03× the single probe at alpha 1e-3).
+fn sensitivity(value: impl Fn(Vec3) -> f32, wi: Vec3) -> f32 {
+    const DELTA: f32 = 4e-6;
+    let frame = Frame::from_normal(wi);
+    let v0 = value(wi);
+    let mut worst = 0.0f32;
+    for d in [frame.s, -frame.s, frame.t, -frame.t] {
+        let v = value((wi + d * DELTA).normalize());
+        worst = worst.max((v - v0).abs() / v0.max(v).max(f32::MIN_POSITIVE));
+    }
+    2.0 * worst
+}
+
+/// The f32 conditioning of the Fresnel factor of the pair (a, b) at a dielectric of index
+/// `eta` (as in bsdf.rs): next to the critical angle of the microfacet, seen from the denser
+/// side, cos²θₜ = 1 − (1 − c²)/η² is a cancellation and 1 − F ∝ cosθₜ: its absolute error is
+/// ~2ε(1 + 2c/η²) (the arithmetic, and the error of c = w·m amplified by ∂cos²θₜ/∂c = 2c/η²,
+/// 15 at η = 0.355), doubled, over |cos²θₜ|, for the worse of the two sides. Near index matching (η = 1 + δ) the amplitude numerators ηcosθᵢ −
+/// cosθₜ and cosθᵢ − ηcosθₜ are O(δ) differences of O(1) numbers, so F ≈ (δ/2)² itself has a
+/// relative error ~4ε/|δ| (1e-3 at η = 1.0001, an absolute 1e-12): added for reflection pairs.
+fn fresnel_conditioning(eta: f32, a: Vec3, b: Vec3) -> f32 {
+    let (ad, bd) = (a.as_dvec3(), b.as_dvec3());
+    let eta = f64::from(eta);
+    let etap = if (a.z > 0.0) == (b.z > 0.0) {
+        1.0
+    } else if a.z > 0.0 {
+        eta
+    } else {
+        1.0 / eta
+    };
+    let m = (ad + bd * etap).normalize();
+    let m = if m.z < 0.0 { -m } else { m };
+    let term = |w: DVec3| {
+        let c = w.dot(m);
+        let e = if c > 0.0 { eta } else { 1.0 / eta };
+        let cos2_t = 1.0 - (1.0 - c * c) / (e * e);
+        // δcos²θₜ ≈ 2ε (arithmetic) + (2c/η²)·δc with δc ≈ 2ε (c is an f32 dot product).
+        4.0 * f64::from(f32::EPSILON) * (1.0 + 2.0 * c.abs() / (e * e)) / cos2_t.abs().max(1e-12)
+    };
+    let reflection = if etap == 1.0 {
+        4.0 * f64::from(f32::EPSILON) / (eta - 1.0).abs()
+    } else {
+        0.0
+    };
+    (term(ad).max(term(bd)) + reflection) as f32
+}
+
+fn relative_error(x: f32, y: f32) -> f32 {
+    if x == y {
+        0.0
+    } else {
+        (x - y).abs() / x.abs().max(y.abs())
+    }
+}
+
 fn exponent_of(b: &Bsdf) -> f32 {
     match b {
         Bsdf::Diffuse(_) => 0.0,
@@ -742,6 +1115,117 @@ proptest! {
                 prop_assert!(mean[c] <= 1.0 + 4.0 * se[c] + 1e-6,
                     "{b:?} wo={wo}: albedo {mean} ± {se}");
             }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(config(512))]
+
+    /// Conductors and dielectrics: eval and pdf finite and non-negative for every pair of
+    /// directions and either mode; nothing for a delta BSDF, nothing on the horizon, nothing
+    /// below the surface for a conductor.
+    #[test]
+    fn prop_microfacet_eval_and_pdf_are_finite_and_non_negative(
+        b in microfacet_bsdf(), wo in direction(), wi in direction(), mode in mode()
+    ) {
+        let f = b.eval(wo, wi, mode);
+        let p = b.pdf(wo, wi, mode).0;
+        prop_assert!(f.is_finite() && f.min_element() >= 0.0, "{b:?} {wo} {wi}: f {f}");
+        prop_assert!(p.is_finite() && p >= 0.0, "{b:?} {wo} {wi}: pdf {p}");
+        let opaque_below = is_opaque(&b) && (wo.z <= 0.0 || wi.z <= 0.0);
+        if b.flags().is_specular() || wo.z == 0.0 || wi.z == 0.0 || opaque_below {
+            prop_assert_eq!((f, p), (Vec3::ZERO, 0.0));
+        }
+    }
+
+    /// Every sample is valid ([`check_sample`]) and, off the delta lobes, agrees with `pdf()` and
+    /// `eval()` to their sensitivity plus the Fresnel conditioning plus 1e-5 (not checked for
+    /// the ill-conditioned near-index-matched samples `check_sample` reports).
+    #[test]
+    fn prop_microfacet_sample_agrees_with_pdf_and_eval(
+        b in microfacet_bsdf(), wo in direction(), uc in lobe_number(),
+        ux in 0.0f32..1.0, uy in 0.0f32..1.0, mode in mode()
+    ) {
+        let u = Vec2::new(ux, uy);
+        if let Some(s) = b.sample(wo, uc, u, mode) {
+            let ctx = format!("{b:?} {mode:?} wo={wo} uc={uc} u={u}: {s:?}");
+            let outside = check_sample(&b, wo, &s, mode, &ctx);
+            let ill_conditioned = s.flags.is_transmission()
+                && (s.wi.as_dvec3() * f64::from(s.eta) + wo.as_dvec3()).length() < 1e-2;
+            if !s.flags.is_specular() && !outside && !ill_conditioned {
+                let fresnel = match b {
+                    Bsdf::Dielectric(d) => fresnel_conditioning(d.eta, wo, s.wi),
+                    _ => 0.0,
+                };
+                let tol_p = 1e-5 + fresnel + sensitivity(|w| b.pdf(wo, w, mode).0, s.wi);
+                let p = b.pdf(wo, s.wi, mode).0;
+                prop_assert!(relative_error(p, s.pdf.0) <= tol_p, "{ctx}: pdf() {p}, tol {tol_p}");
+                let f = b.eval(wo, s.wi, mode);
+                for c in 0..3 {
+                    let tol = 1e-5 + fresnel + sensitivity(|w| b.eval(wo, w, mode)[c], s.wi);
+                    prop_assert!(relative_error(f[c], s.f[c]) <= tol, "{ctx}: eval() {f}, tol {tol}");
+                }
+            }
+        }
+    }
+
+    /// Conductors are reciprocal (the formula is symmetric in its operands: 1e-6) and ignore
+    /// the mode; dielectrics satisfy f_rad(wo, wi)/η_o² = f_rad(wi, wo)/η_i² (η_o, η_i the
+    /// indices of the media wo and wi are in; see bsdf.rs) and f_imp(wo, wi) = f_rad(wi, wo),
+    /// to the sensitivity of both evaluations plus the Fresnel conditioning.
+    #[test]
+    fn prop_microfacet_reciprocity(b in microfacet_bsdf(), wo in direction(), wi in direction()) {
+        let rad = b.eval(wo, wi, TransportMode::Radiance);
+        let rad_rev = b.eval(wi, wo, TransportMode::Radiance);
+        let imp = b.eval(wo, wi, TransportMode::Importance);
+        match b {
+            Bsdf::Conductor(_) => {
+                for c in 0..3 {
+                    prop_assert!(relative_error(rad[c], rad_rev[c]) <= 1e-6, "{b:?} {wo} {wi}: {rad} {rad_rev}");
+                }
+                prop_assert_eq!(rad, imp);
+            }
+            Bsdf::Dielectric(d) => {
+                let tol = 2e-5
+                    + fresnel_conditioning(d.eta, wo, wi)
+                    + sensitivity(|w| b.eval(wo, w, MODE).x, wi)
+                        .max(sensitivity(|w| b.eval(wi, w, MODE).x, wo));
+                // Near index matching the half vector itself is ill-conditioned.
+                let etap = if (wo.z > 0.0) == (wi.z > 0.0) { 1.0 } else if wo.z > 0.0 { d.eta } else { 1.0 / d.eta };
+                let h = (wi.as_dvec3() * f64::from(etap) + wo.as_dvec3()).length();
+                if tol < 0.5 && h >= 1e-2 {
+                    let index = |w: Vec3| if w.z > 0.0 { 1.0 } else { d.eta };
+                    let (eta_o, eta_i) = (index(wo), index(wi));
+                    for c in 0..3 {
+                        let lhs = rad[c] / (eta_o * eta_o);
+                        let rhs = rad_rev[c] / (eta_i * eta_i);
+                        prop_assert!(relative_error(lhs, rhs) <= tol, "{b:?} {wo} {wi}: {lhs} vs {rhs} (tol {tol})");
+                        let adjoint = b.eval(wi, wo, TransportMode::Radiance)[c];
+                        prop_assert!(relative_error(imp[c], adjoint) <= tol, "{b:?} {wo} {wi}: adjoint");
+                    }
+                }
+            }
+            _ => unreachable!(),
+        }
+    }
+
+    /// Energy: a conductor reflects at most Ks (per channel), a dielectric with Tf ≤ 1 scatters
+    /// at most everything in importance transport, from either side; 4 standard errors,
+    /// one-sided, plus 1e-6 for the f32 weights (exactly Ks or 1 for delta lobes).
+    #[test]
+    fn prop_microfacet_albedo_is_at_most_its_reflectance(
+        b in microfacet_bsdf(), wo in direction(), seed in any::<u64>()
+    ) {
+        prop_assume!(wo.z != 0.0);
+        let (mean, se) = mc_albedo(&b, wo, 4096, seed);
+        let bound = match b {
+            Bsdf::Conductor(c) => c.ks.as_dvec3(),
+            _ => DVec3::ONE,
+        };
+        for c in 0..3 {
+            prop_assert!(mean[c] <= bound[c] * (1.0 + 1e-6) + 4.0 * se[c] + 1e-6,
+                "{b:?} wo={wo}: albedo {mean} ± {se}, bound {bound}");
         }
     }
 }

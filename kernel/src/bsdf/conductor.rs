@@ -37,7 +37,13 @@ impl Conductor {
         if m == Vec3::ZERO {
             return Rgb::ZERO;
         }
-        self.ks * (d.d(m) * d.g(wo, wi) / (4.0 * wo.z * wi.z))
+        let f = self.ks * (d.d(m) * d.g_over_cosines(wo, wi) * 0.25);
+        // Finite for every pair whose cosines are representable; 0 rather than an overflow.
+        if crate::math::is_finite(f) {
+            f
+        } else {
+            Rgb::ZERO
+        }
     }
 
     #[inline]

@@ -56,7 +56,9 @@ impl Dielectric {
         if co == 0.0 || ci == 0.0 {
             return None;
         }
-        let reflect = co * ci > 0.0;
+        // Signs, not the product, which underflows to 0 for grazing pairs (and then made a
+        // reflection pair take the transmission formula).
+        let reflect = (co > 0.0) == (ci > 0.0);
         let etap = if reflect {
             1.0
         } else if co > 0.0 {
@@ -84,18 +86,51 @@ impl Dielectric {
         let Some((m, etap, reflect)) = self.half_vector(wo, wi) else {
             return Rgb::ZERO;
         };
-        let d = &self.distribution;
-        let f = fresnel_dielectric(wo.dot(m), self.eta);
-        if reflect {
-            return Rgb::splat(d.d(m) * d.g(wo, wi) * f / (4.0 * wi.z * wo.z).abs());
+        let r = fresnel_dielectric(wo.dot(m), self.eta);
+        let f = if reflect {
+            Rgb::splat(self.reflection(wo, wi, m, r))
+        } else {
+            self.tf * self.transmission(wo, wi, m, etap, r, mode)
+        };
+        // Finite for every pair whose cosines are representable; 0 rather than an overflow.
+        if crate::math::is_finite(f) {
+            f
+        } else {
+            Rgb::ZERO
         }
+    }
+
+    /// f of the reflection through the microfacet normal `m` with Fresnel reflectance `r`:
+    /// D(m) G(wo, wi) r / (4 |cosθₒ cosθᵢ|).
+    #[inline]
+    fn reflection(&self, wo: Vec3, wi: Vec3, m: Vec3, r: f32) -> f32 {
+        let d = &self.distribution;
+        d.d(m) * d.g_over_cosines(wo, wi) * r * 0.25
+    }
+
+    /// f of the transmission through `m` (before the tint), Walter et al. (2007) eq. 21:
+    /// D(m) G(wo, wi) (1 − r) |wi·m| |wo·m| / (|cosθₒ cosθᵢ| (wi·m + wo·m/η′)²), divided by
+    /// η′² in radiance transport.
+    #[inline]
+    fn transmission(
+        &self,
+        wo: Vec3,
+        wi: Vec3,
+        m: Vec3,
+        etap: f32,
+        r: f32,
+        mode: TransportMode,
+    ) -> f32 {
+        let d = &self.distribution;
         let denom = wi.dot(m) + wo.dot(m) / etap;
-        let denom = denom * denom * wi.z * wo.z;
-        let mut ft = d.d(m) * (1.0 - f) * d.g(wo, wi) * (wi.dot(m) * wo.dot(m) / denom).abs();
+        let mut ft = d.d(m)
+            * (1.0 - r)
+            * d.g_over_cosines(wo, wi)
+            * (wi.dot(m) * wo.dot(m) / (denom * denom)).abs();
         if mode == TransportMode::Radiance {
             ft /= etap * etap;
         }
-        self.tf * ft
+        ft
     }
 
     #[inline]
@@ -114,36 +149,27 @@ impl Dielectric {
         let pdf_m = d.visible_normal_pdf(wo, m);
         if uc < pr / (pr + pt) {
             let wi = reflect(wo, m);
-            if wi.z * wo.z <= 0.0 {
+            if wi.z == 0.0 || (wi.z > 0.0) != (wo.z > 0.0) {
                 return None;
             }
             let pdf = pdf_m / (4.0 * wo.dot(m).abs()) * pr / (pr + pt);
-            let f = d.d(m) * d.g(wo, wi) * r / (4.0 * wi.z * wo.z).abs();
             return Some(BsdfSample {
                 wi,
-                f: Rgb::splat(f),
+                f: Rgb::splat(self.reflection(wo, wi, m, r)),
                 pdf: SolidAnglePdf(pdf),
                 flags: BsdfFlags::GLOSSY_REFLECTION,
                 eta: 1.0,
             });
         }
         let (wi, etap) = refract(wo, m, self.eta)?;
-        if wi.z * wo.z >= 0.0 {
+        if wi.z == 0.0 || (wi.z > 0.0) == (wo.z > 0.0) {
             return None;
         }
         let denom = wi.dot(m) + wo.dot(m) / etap;
-        let denom = denom * denom;
-        let pdf = pdf_m * (wi.dot(m).abs() / denom) * pt / (pr + pt);
-        let mut ft = (1.0 - r)
-            * d.d(m)
-            * d.g(wo, wi)
-            * (wi.dot(m) * wo.dot(m) / (wi.z * wo.z * denom)).abs();
-        if mode == TransportMode::Radiance {
-            ft /= etap * etap;
-        }
+        let pdf = pdf_m * (wi.dot(m).abs() / (denom * denom)) * pt / (pr + pt);
         Some(BsdfSample {
             wi,
-            f: self.tf * ft,
+            f: self.tf * self.transmission(wo, wi, m, etap, r, mode),
             pdf: SolidAnglePdf(pdf),
             flags: BsdfFlags::GLOSSY_TRANSMISSION,
             eta: etap,

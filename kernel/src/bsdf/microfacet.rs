@@ -84,6 +84,27 @@ impl TrowbridgeReitz {
         1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
     }
 
+    /// `G(wo, wi) / (|cosθₒ| |cosθᵢ|)`, the masking–shadowing factor of every microfacet BSDF
+    /// with its two cosines, computed without dividing by them: with q(w) = √(cos²θ + α² sin²θ)
+    /// (so Λ(w) = (q(w)/|cosθ| − 1)/2), |cosθₒ cosθᵢ| (1 + Λ(wo) + Λ(wi)) =
+    /// (|cosθᵢ| q(wo) + |cosθₒ| q(wi)) / 2. At grazing angles G → 0 with the
+    /// cosines and the quotient tends to 2/(α(|cosθₒ| + |cosθᵢ|)); `G / (cosθₒ cosθᵢ)` gave
+    /// 0/0 = NaN once a cos² underflowed (|cosθ| ≲ 4e-23). 0 when the quotient is not
+    /// representable (both directions within ~1e-38 of the horizon).
+    #[inline]
+    #[must_use]
+    pub fn g_over_cosines(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let a2 = self.alpha * self.alpha;
+        let q = |w: Vec3| crate::math::sqrt(w.z * w.z + a2 * (w.x * w.x + w.y * w.y));
+        let (co, ci) = (wo.z.abs(), wi.z.abs());
+        let g = 2.0 / (ci * q(wo) + co * q(wi));
+        if g.is_finite() {
+            g
+        } else {
+            0.0
+        }
+    }
+
     /// Density of [`Self::sample_visible_normal`] for `w`: `G1(w) |w·m| D(m) / |cosθ_w|`
     /// (`w` on either side; `m` in the upper hemisphere).
     #[inline]
@@ -156,6 +177,38 @@ mod tests {
                 let w = Vec3::new(sin * 0.6, sin * 0.8, cos);
                 let v = integrate(|m| f64::from(d.visible_normal_pdf(w, m)), 4000, 128);
                 assert!((v - 1.0).abs() < 5e-3, "alpha {alpha} cos {cos}: {v}");
+            }
+        }
+    }
+
+    /// G/(cosθₒ cosθᵢ) agrees with G divided by the cosines where that is representable, and
+    /// stays finite (the grazing limit 2/(α(|cosθₒ| + |cosθᵢ|))) where the quotient was 0/0.
+    #[test]
+    fn g_over_cosines_is_finite_at_grazing_angles() {
+        for alpha in [1e-3f32, 0.05, 0.5, 1.0] {
+            let d = TrowbridgeReitz::new(alpha);
+            for (co, ci) in [(1.0f32, 1.0f32), (0.7, -0.3), (0.05, 0.9), (-1e-3, -0.5)] {
+                let w = |c: f32, phi: f32| {
+                    let s = safe_sqrt(1.0 - c * c);
+                    Vec3::new(s * libm::cosf(phi), s * libm::sinf(phi), c)
+                };
+                let (wo, wi) = (w(co, 0.3), w(ci, 2.0));
+                let direct = d.g(wo, wi) / (wo.z * wi.z).abs();
+                let robust = d.g_over_cosines(wo, wi);
+                assert!(
+                    (robust - direct).abs() <= 1e-5 * direct,
+                    "{alpha} {co} {ci}"
+                );
+            }
+            for c in [1e-20f32, f32::MIN_POSITIVE, 1e-30] {
+                let wo = Vec3::new(0.0, -1.0, c);
+                let wi = Vec3::new(1.0, 0.0, 1e-20);
+                let g = d.g_over_cosines(wo, wi);
+                let limit = 2.0 / (alpha * (c + 1e-20));
+                assert!(
+                    g.is_finite() && (g - limit).abs() <= 1e-5 * limit,
+                    "{alpha} {c}: {g}"
+                );
             }
         }
     }

@@ -22,8 +22,12 @@ use glam::{Vec2, Vec3};
 ///   `|wo·n_s| |wi·n_g| / (|wo·n_g| |wi·n_s|)` (Veach 1997, §5.3, eq. 5.19), the correction
 ///   that makes light paths carry the same contribution as camera paths when shading normals
 ///   differ from geometric ones. pbrt-v4 omits it (its issues #385, #526). With it, for every
-///   pair of directions `a`, `b`:
-///   `f_imp(a, b)·|b·n_s|/|b·n_g| = f_rad(b, a)·|a·n_s|/|a·n_g|` (× η′² across glass).
+///   pair of directions `a`, `b` and every BSDF, glass included:
+///   `f_imp(a, b)·|b·n_s|/|b·n_g| = f_rad(b, a)·|a·n_s|/|a·n_g|`. There is no η′² factor
+///   across glass: importance mode is the adjoint of radiance mode in the local frame,
+///   `f_imp(a, b) = f_rad(b, a)`; it is `f_rad(a, b)` and `f_rad(b, a)` that differ by η′²
+///   (f(wo, wi)/η_o² = f(wi, wo)/η_i², η_o and η_i the indices of the media wo and wi are in).
+///   Tested in `kernel/tests/bsdf.rs`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfaceBsdf {
     pub bsdf: Bsdf,
