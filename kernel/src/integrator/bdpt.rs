@@ -20,8 +20,10 @@
 //!   its issues #385, #526). Connection cosines use shading normals, densities geometric ones.
 //! - **Depth**: `max_depth` counts scattering vertices between camera and emitter, as
 //!   TinyRender's: strategy `(s, t)` makes a path with `s + t − 2` of them. At most
-//!   [`BDPT_MAX_DEPTH`]; `−1` is unbounded with Russian roulette on both subpaths (the fixed
-//!   rule, counted along each subpath), truncated at that cap.
+//!   [`BDPT_MAX_DEPTH`]; `−1` is unbounded with Russian roulette on both subpaths, truncated
+//!   at that cap. The roulette is throughput-adaptive, as the MIS path tracer's, on each
+//!   subpath's throughput relative to its start (a light subpath starts at `Le/p`): from
+//!   `rr_depth` vertices on, survival `min(max(β/β₀)·η_scale, rr_prob)`.
 //! - **Roulette and MIS.** The survival probabilities are not part of the densities the MIS
 //!   weights use (the other subpath's walk would have its own); weights that sum to one over
 //!   the strategies of a path keep the estimate unbiased whatever densities they come from.
@@ -320,6 +322,10 @@ fn random_walk<S: Sampler>(
     start: usize,
 ) -> usize {
     let mut n = start;
+    // Roulette sees the throughput relative to the subpath's start and, in radiance transport,
+    // without the 1/η′² of the dielectric crossings (pbrt's `etaScale`).
+    let beta0 = beta.max_element();
+    let mut eta_scale = 1.0f32;
     while n < path.len() {
         sampler.count_ray();
         let Some(hit) = scene.intersect(&ray) else {
@@ -376,8 +382,12 @@ fn random_walk<S: Sampler>(
         let (cur, prev) = (path[n - 1], path[n - 2]);
         path[n - 2].pdf_rev = convert_density(pdf_rev, &cur, &prev);
         beta *= s.weight;
+        if mode == TransportMode::Radiance && s.flags.is_transmission() {
+            eta_scale *= s.eta * s.eta;
+        }
         // Vertex n − 1 is scattering vertex number n − 1 of this subpath.
-        if !settings.survives_roulette((n - 1) as u32, roulette, &mut beta) {
+        let scale = eta_scale / beta0;
+        if !settings.survives_adaptive_roulette((n - 1) as u32, roulette, scale, &mut beta) {
             break;
         }
         ray = si.spawn_ray(s.wi);
@@ -767,4 +777,354 @@ pub fn li_bdpt<S: Sampler, K: BdptSink>(
         }
     }
     l
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::{self, Bvh, BvhNode};
+    use crate::emitter::{build_emitter_table, EmitterPolicy};
+    use crate::material::Material;
+    use crate::sampler::IndependentSampler;
+    use crate::texture::Textures;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// A closed box seen from inside with every kind of BSDF: diffuse, Phong and mixture walls,
+    /// a mirror and a rough metal panel, a smooth and a rough glass slab, and a ceiling light.
+    struct TestScene {
+        positions: Vec<Vec3>,
+        normals: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        materials_of: Vec<u32>,
+        materials: Vec<Material>,
+        nodes: Vec<BvhNode>,
+        order: Vec<u32>,
+        emitters: Vec<u32>,
+        cdf: Vec<f32>,
+    }
+
+    impl TestScene {
+        fn new() -> Self {
+            let materials = vec![
+                Material::diffuse(Rgb::splat(0.7)),
+                Material::phong(Rgb::splat(0.2), Rgb::splat(0.6), 20.0),
+                Material::mixture(Rgb::new(0.5, 0.3, 0.2), Rgb::splat(0.4), 50.0),
+                Material::conductor(Rgb::splat(0.9), 0.0),
+                Material::conductor(Rgb::splat(0.8), 0.2),
+                Material::dielectric(1.5, Rgb::ONE, 0.0),
+                Material::dielectric(1.5, Rgb::ONE, 0.3),
+                Material::diffuse(Rgb::ZERO).with_emission(Rgb::splat(4.0)),
+            ];
+            let mut s = Self {
+                positions: Vec::new(),
+                normals: Vec::new(),
+                triangles: Vec::new(),
+                materials_of: Vec::new(),
+                materials,
+                nodes: Vec::new(),
+                order: Vec::new(),
+                emitters: Vec::new(),
+                cdf: Vec::new(),
+            };
+            // Quads as (corner, edge u, edge v, material); the normal is u × v.
+            let quads: [(Vec3, Vec3, Vec3, u32); 16] = [
+                (Vec3::new(-1.0, -1.0, -1.0), Vec3::Z * 2.0, Vec3::X * 2.0, 1), // floor
+                (Vec3::new(-1.0, 1.0, -1.0), Vec3::X * 2.0, Vec3::Z * 2.0, 0),  // ceiling
+                (Vec3::new(-1.0, -1.0, -1.0), Vec3::X * 2.0, Vec3::Y * 2.0, 2), // back
+                (Vec3::new(-1.0, -1.0, -1.0), Vec3::Y * 2.0, Vec3::Z * 2.0, 0), // left
+                (Vec3::new(1.0, -1.0, -1.0), Vec3::Z * 2.0, Vec3::Y * 2.0, 0),  // right
+                (Vec3::new(-1.0, -1.0, 1.0), Vec3::Y * 2.0, Vec3::X * 2.0, 0),  // front
+                (Vec3::new(-0.3, 0.99, -0.3), Vec3::X * 0.6, Vec3::Z * 0.6, 7), // light
+                (
+                    Vec3::new(-0.98, -0.6, -0.6),
+                    Vec3::Y * 1.0,
+                    Vec3::Z * 1.0,
+                    3,
+                ), // mirror
+                (Vec3::new(0.98, -0.6, -0.6), Vec3::Z * 1.0, Vec3::Y * 1.0, 4), // rough metal
+                // A smooth glass slab (front and back faces, outward normals).
+                (Vec3::new(-0.6, -0.8, 0.0), Vec3::X * 0.5, Vec3::Y * 0.8, 5),
+                (Vec3::new(-0.6, -0.8, -0.2), Vec3::Y * 0.8, Vec3::X * 0.5, 5),
+                // A rough glass slab.
+                (Vec3::new(0.1, -0.8, -0.3), Vec3::X * 0.5, Vec3::Y * 0.8, 6),
+                (Vec3::new(0.1, -0.8, -0.5), Vec3::Y * 0.8, Vec3::X * 0.5, 6),
+                // Two more diffuse and glossy panels facing the camera.
+                (Vec3::new(-0.9, 0.2, -0.9), Vec3::X * 0.4, Vec3::Y * 0.4, 1),
+                (Vec3::new(0.5, 0.2, -0.9), Vec3::X * 0.4, Vec3::Y * 0.4, 2),
+                (Vec3::new(-0.2, -0.9, -0.9), Vec3::X * 0.4, Vec3::Y * 0.3, 4),
+            ];
+            for (c, u, v, m) in quads {
+                let n = u.cross(v).normalize();
+                let base = s.positions.len() as u32;
+                s.positions.extend([c, c + u, c + u + v, c + v]);
+                s.normals.extend([n; 4]);
+                s.triangles
+                    .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+                s.materials_of.extend([m, m]);
+            }
+            s.nodes = vec![BvhNode::default(); bvh::max_nodes(s.triangles.len())];
+            s.order = vec![0; s.triangles.len()];
+            let used = bvh::build_triangles(&s.positions, &s.triangles, &mut s.nodes, &mut s.order)
+                .unwrap();
+            s.nodes.truncate(used);
+            s.emitters = vec![0; 2];
+            s.cdf = vec![0.0; 2];
+            let emission = |m: u32| s.materials[m as usize].emission;
+            let n = build_emitter_table(
+                &s.positions,
+                &s.triangles,
+                &s.materials_of,
+                emission,
+                EmitterPolicy::Area,
+                &mut s.emitters,
+                &mut s.cdf,
+            )
+            .unwrap();
+            assert_eq!(n, 2);
+            s
+        }
+
+        fn view(&self) -> SceneView<'_> {
+            SceneView {
+                positions: &self.positions,
+                normals: &self.normals,
+                triangles: &self.triangles,
+                triangle_materials: &self.materials_of,
+                materials: &self.materials,
+                emitter_triangles: &self.emitters,
+                emitter_cdf: &self.cdf,
+                bvh: Bvh {
+                    nodes: &self.nodes,
+                    prim_order: &self.order,
+                }
+                .into(),
+                textures: Textures::NONE,
+            }
+        }
+    }
+
+    /// Solid-angle density of `v` (a surface) scattering from `from` toward `to`, with a delta
+    /// lobe counted as the discrete probability 1 (the same for every strategy that samples
+    /// through it, so it cancels in the weights).
+    fn scatter_pdf(v: &Vertex, from: &Vertex, to: &Vertex) -> f32 {
+        if v.delta {
+            return 1.0;
+        }
+        let (wp, wn) = ((from.p - v.p).normalize(), (to.p - v.p).normalize());
+        v.bsdf.pdf(wp, wn, TransportMode::Radiance).0
+    }
+
+    /// Area density at `to` of `pdf` (solid angle at `from`), or the discrete 1 of a delta.
+    fn to_area(pdf: f32, from: &Vertex, to: &Vertex, delta: bool) -> f32 {
+        if delta {
+            1.0
+        } else {
+            convert_density(pdf, from, to)
+        }
+    }
+
+    /// Brute force: for the full path `x[0]` (camera) … `x[k]` (on the light), the density of
+    /// each strategy `s` (light vertices) computed from scratch as a product along both
+    /// subpaths, the set of strategies that can make the path, and their MIS weights.
+    fn brute_force_weights(
+        scene: &SceneView<'_>,
+        camera: &Camera,
+        x: &[Vertex],
+        heuristic: MisHeuristic,
+    ) -> Vec<Option<f32>> {
+        let k = x.len() - 1;
+        // The light-side vertex at x[k] (the emitter point).
+        let light_end = light_vertex_of(&x[k]);
+        let cam_pdf = |i: usize| -> f32 {
+            if i == 1 {
+                let d = (x[1].p - x[0].p).normalize();
+                convert_density(camera.pdf_we(d).1 .0, &x[0], &x[1])
+            } else {
+                let delta = x[i - 1].delta;
+                to_area(
+                    scatter_pdf(&x[i - 1], &x[i - 2], &x[i]),
+                    &x[i - 1],
+                    &x[i],
+                    delta,
+                )
+            }
+        };
+        let light_pdf = |j: usize| -> f32 {
+            if j == k {
+                pdf_light_origin(scene, &light_end)
+            } else if j + 1 == k {
+                pdf_light(&light_end, &x[j])
+            } else {
+                let delta = x[j + 1].delta;
+                to_area(
+                    scatter_pdf(&x[j + 1], &x[j + 2], &x[j]),
+                    &x[j + 1],
+                    &x[j],
+                    delta,
+                )
+            }
+        };
+        let p: Vec<Option<f64>> = (0..=k + 1)
+            .map(|s| {
+                let t = k + 1 - s;
+                // A connection joins x[t − 1] (the camera, or a surface) and x[t] (a surface,
+                // or the light point itself when t = k): neither may scatter by a delta lobe.
+                let connectible =
+                    || s == 0 || ((t == 1 || !x[t - 1].delta) && (t == k || !x[t].delta));
+                let valid = t >= 1 && !(s == 1 && t == 1) && connectible();
+                if !valid {
+                    return None;
+                }
+                let mut p = 1.0f64;
+                for i in 1..t {
+                    p *= f64::from(cam_pdf(i));
+                }
+                for j in (k + 1 - s)..=k {
+                    p *= f64::from(light_pdf(j));
+                }
+                Some(p)
+            })
+            .collect();
+        let beta = |v: f64| match heuristic {
+            MisHeuristic::Balance => v,
+            MisHeuristic::Power => v * v,
+        };
+        let total: f64 = p.iter().flatten().map(|&v| beta(v)).sum();
+        p.iter()
+            .map(|v| v.map(|v| (beta(v) / total) as f32))
+            .collect()
+    }
+
+    /// `v` (a surface point on an emitter) as the first vertex of a light subpath.
+    fn light_vertex_of(v: &Vertex) -> Vertex {
+        Vertex {
+            kind: VertexKind::Light,
+            delta: false,
+            ..*v
+        }
+    }
+
+    /// The subpaths strategy `s` splits the full path `x` into, with the densities and delta
+    /// flags the random walks would have stored (delta scatters store 0).
+    fn split(
+        scene: &SceneView<'_>,
+        camera: &Camera,
+        x: &[Vertex],
+        s: usize,
+    ) -> (Vec<Vertex>, Vec<Vertex>) {
+        let k = x.len() - 1;
+        let t = k + 1 - s;
+        let fwd_cam = |i: usize| -> f32 {
+            if i == 0 {
+                return 0.0;
+            }
+            if i == 1 {
+                let d = (x[1].p - x[0].p).normalize();
+                return convert_density(camera.pdf_we(d).1 .0, &x[0], &x[1]);
+            }
+            if x[i - 1].delta {
+                0.0
+            } else {
+                convert_density(scatter_pdf(&x[i - 1], &x[i - 2], &x[i]), &x[i - 1], &x[i])
+            }
+        };
+        let light_end = light_vertex_of(&x[k]);
+        let fwd_light = |j: usize| -> f32 {
+            if j == k {
+                pdf_light_origin(scene, &light_end)
+            } else if j + 1 == k {
+                pdf_light(&light_end, &x[j])
+            } else if x[j + 1].delta {
+                0.0
+            } else {
+                convert_density(scatter_pdf(&x[j + 1], &x[j + 2], &x[j]), &x[j + 1], &x[j])
+            }
+        };
+        let cam: Vec<Vertex> = (0..t)
+            .map(|i| Vertex {
+                pdf_fwd: fwd_cam(i),
+                pdf_rev: if i < k { fwd_light(i) } else { 0.0 },
+                ..x[i]
+            })
+            .collect();
+        let light: Vec<Vertex> = (0..s)
+            .map(|j| {
+                let i = k - j;
+                let v = if j == 0 { light_end } else { x[i] };
+                Vertex {
+                    pdf_fwd: fwd_light(i),
+                    pdf_rev: fwd_cam(i),
+                    ..v
+                }
+            })
+            .collect();
+        (light, cam)
+    }
+
+    /// For random full paths through every kind of BSDF (delta ones included), the kernel's
+    /// MIS weights (pbrt's recursive ratios with the connection's reverse densities replaced)
+    /// equal the weights computed from the strategies' path densities by brute force, and sum
+    /// to 1 over the strategies that can make the path; for both heuristics.
+    #[test]
+    fn mis_weights_sum_to_one_and_match_brute_force() {
+        let data = TestScene::new();
+        let scene = data.view();
+        scene.validate().unwrap();
+        let camera = Camera::look_at(
+            Vec3::new(0.0, 0.0, 0.9),
+            Vec3::new(0.0, 0.0, -1.0),
+            Vec3::Y,
+            70.0,
+            64,
+            64,
+        );
+        let settings = PathSettings {
+            max_depth: 12,
+            ..PathSettings::default()
+        };
+        let mut path = [Vertex::default(); CAMERA_PATH_VERTICES];
+        let (mut tested, mut with_delta, mut longest) = (0, 0, 0);
+        for i in 0..20_000u32 {
+            let mut sampler = IndependentSampler::new(5, u64::from(i), 0);
+            let u = Vec2::new(sampler.next_1d(), sampler.next_1d());
+            let ray = camera.generate_ray(i % 64, (i / 64) % 64, u);
+            let n = camera_subpath(&scene, &camera, &ray, &settings, &mut sampler, &mut path);
+            if n < 3 || path[n - 1].le == Rgb::ZERO {
+                continue;
+            }
+            let x = &path[..n];
+            tested += 1;
+            longest = longest.max(n);
+            if x.iter().any(|v| v.delta) {
+                with_delta += 1;
+            }
+            for heuristic in [MisHeuristic::Balance, MisHeuristic::Power] {
+                let expected = brute_force_weights(&scene, &camera, x, heuristic);
+                let mut sum = 0.0f64;
+                for (s, e) in expected.iter().enumerate() {
+                    let Some(e) = *e else { continue };
+                    let t = n - s;
+                    let (light, cam) = split(&scene, &camera, x, s);
+                    let sampled = match (s, t) {
+                        (1, _) => Some(&light[0]),
+                        (_, 1) => Some(&cam[0]),
+                        _ => None,
+                    };
+                    let w = mis_weight(&scene, &camera, &light, &cam, sampled, s, t, heuristic);
+                    assert!(
+                        (w - e).abs() <= 2e-4 * e.max(1e-3),
+                        "path {i} ({n} vertices), (s, t) = ({s}, {t}), {heuristic:?}: kernel {w}, brute force {e}"
+                    );
+                    sum += f64::from(w);
+                }
+                assert!((sum - 1.0).abs() < 1e-4, "path {i}: weights sum to {sum}");
+            }
+        }
+        std::println!("{tested} paths up to {longest} vertices, {with_delta} through delta lobes");
+        assert!(
+            tested > 300 && with_delta > 30,
+            "{tested} paths, {with_delta} with delta"
+        );
+    }
 }

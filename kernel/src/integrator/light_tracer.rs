@@ -39,8 +39,8 @@ pub fn ray_to_camera(p: Vec3, p_err: Vec3, ng: Vec3, cs: &CameraSample) -> Ray {
 ///
 /// `max_depth` keeps TinyRender's meaning: a connection from the `k`-th scattering vertex of
 /// the light path makes a path with `k` scattering vertices, so the emitter seen directly is
-/// depth 0. Russian roulette is the fixed rule ([`PathSettings::survives_roulette`]) counted
-/// along the light path. Dimensions: [`dims::LightStart`], then [`dims::LightBounce`] per
+/// depth 0. Russian roulette is throughput-adaptive ([`PathSettings::survives_adaptive_roulette`])
+/// on the throughput relative to the emitted `Le/p`, counted along the light path. Dimensions: [`dims::LightStart`], then [`dims::LightBounce`] per
 /// vertex.
 pub fn light_trace<S: Sampler, K: SplatSink>(
     scene: &SceneView<'_>,
@@ -72,6 +72,7 @@ pub fn light_trace<S: Sampler, K: SplatSink>(
     // Throughput of the emitted ray: Le |cosθ| / (p_A p_ω).
     let mut beta = pt.radiance * (pt.n.dot(e.w).abs() / (pt.pdf.0 * e.pdf_dir.0));
     let mut ray = spawn_ray(pt.p, pt.p_err, pt.ng, e.w);
+    let relative = 1.0 / beta.max_element();
     let mut bounces = 0u32;
     loop {
         bounces += 1;
@@ -102,7 +103,7 @@ pub fn light_trace<S: Sampler, K: SplatSink>(
             break;
         };
         beta *= s.weight;
-        if !settings.survives_roulette(bounces, u.roulette, &mut beta) {
+        if !settings.survives_adaptive_roulette(bounces, u.roulette, relative, &mut beta) {
             break;
         }
         ray = si.spawn_ray(s.wi);
