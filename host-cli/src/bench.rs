@@ -52,17 +52,25 @@ pub fn integrator_name(i: Integrator) -> &'static str {
     }
 }
 
-/// Parses `implicit`, `explicit` or `mis`.
+/// The integrator names of the command line and the scene file's `type`, with
+/// [`integrator_name`] their inverse.
+pub const INTEGRATOR_NAMES: &str = "implicit, explicit, mis, lighttracer, bdpt or bdpt-balance";
+
+/// Parses an integrator name ([`INTEGRATOR_NAMES`]).
 ///
 /// # Errors
 /// For any other name.
 pub fn parse_integrator(s: &str) -> std::result::Result<Integrator, String> {
+    use ember_kernel::integrator::MisHeuristic;
     match s.trim() {
         "implicit" => Ok(Integrator::PathImplicit),
         "explicit" => Ok(Integrator::PathExplicit),
         "mis" => Ok(Integrator::PathMis),
+        "lighttracer" => Ok(Integrator::LightTracing),
+        "bdpt" => Ok(Integrator::Bdpt(MisHeuristic::Power)),
+        "bdpt-balance" => Ok(Integrator::Bdpt(MisHeuristic::Balance)),
         other => Err(format!(
-            "{other:?} is not an integrator (implicit, explicit or mis)"
+            "{other:?} is not an integrator ({INTEGRATOR_NAMES})"
         )),
     }
 }

@@ -92,25 +92,18 @@ impl LoadedScene {
         (self.path_for(desc), spv)
     }
 
-    /// The integrator, path settings and spp of an offline (`path`) scene.
+    /// The integrator, path settings and spp of an offline scene (`path`, `mis`,
+    /// `lighttracer`, `bdpt`).
     ///
     /// # Errors
     /// For a real-time scene, which is not rendered by a path tracer.
     pub fn path_settings(&self) -> Result<(Integrator, PathSettings, u32)> {
         match self.file.renderer {
             RendererDesc::Path {
-                explicit,
+                integrator,
                 path,
                 spp,
-            } => Ok((
-                if explicit {
-                    Integrator::PathExplicit
-                } else {
-                    Integrator::PathImplicit
-                },
-                self.path_for(path),
-                spp,
-            )),
+            } => Ok((integrator, self.path_for(path), spp)),
             RendererDesc::Gi { .. } => Err(Error::in_file(
                 &self.file.path,
                 "this is a real-time \"gi\" scene, not a path-traced one",

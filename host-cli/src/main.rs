@@ -123,23 +123,6 @@ struct BakeArgs {
     no_shortcuts: bool,
 }
 
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum IntegratorArg {
-    Implicit,
-    Explicit,
-    Mis,
-}
-
-impl From<IntegratorArg> for Integrator {
-    fn from(a: IntegratorArg) -> Self {
-        match a {
-            IntegratorArg::Implicit => Self::PathImplicit,
-            IntegratorArg::Explicit => Self::PathExplicit,
-            IntegratorArg::Mis => Self::PathMis,
-        }
-    }
-}
-
 #[derive(clap::Args)]
 struct RenderArgs {
     /// TinyRender scene file (.toml).
@@ -165,10 +148,11 @@ struct RenderArgs {
     /// Tile side in pixels. Does not change the image.
     #[arg(long, default_value_t = 16)]
     tile: u32,
-    /// Integrator (default: the scene's, `isExplicit` choosing explicit or implicit).
-    /// `mis` combines emitter and BSDF sampling by multiple importance sampling.
-    #[arg(long, value_enum)]
-    integrator: Option<IntegratorArg>,
+    /// Integrator (default: the scene's `type`, `isExplicit` choosing explicit or implicit for
+    /// `path`): implicit, explicit, mis (emitter and BSDF sampling combined by multiple
+    /// importance sampling), lighttracer, bdpt (power heuristic) or bdpt-balance.
+    #[arg(long, value_parser = ember_cli::bench::parse_integrator)]
+    integrator: Option<Integrator>,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -268,7 +252,12 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     if a.no_shortcuts {
         path.shortcuts = Shortcuts::NONE;
     }
-    let integrator = a.integrator.map_or(integrator, Integrator::from);
+    let integrator = a.integrator.unwrap_or(integrator);
+    if let Integrator::Bdpt(_) = integrator {
+        ember_kernel::integrator::bdpt::check_depth(path.max_depth).map_err(|e| {
+            Error::in_file(&a.scene, format!("[renderer].maxDepth with --integrator bdpt: {e}"))
+        })?;
+    }
     let spp = a.spp.unwrap_or(scene_spp);
     let width = a.width.unwrap_or(scene.file.width);
     let height = a.height.unwrap_or(scene.file.height);

@@ -7,6 +7,8 @@
 
 use crate::error::{Error, Result};
 use crate::mesh::quote;
+use ember_kernel::integrator::bdpt::check_depth;
+use ember_kernel::integrator::{Integrator, MisHeuristic};
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
@@ -29,9 +31,11 @@ pub struct PathDesc {
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum RendererDesc {
-    /// `realtime = false, type = "path"`.
+    /// An offline integrator (`realtime = false`): `type = "path"` (TinyRender's; `isExplicit`
+    /// chooses next-event estimation or not), `"mis"`, `"lighttracer"` or `"bdpt"`
+    /// (`misHeuristic = "power"` or `"balance"`).
     Path {
-        explicit: bool,
+        integrator: Integrator,
         path: PathDesc,
         spp: u32,
     },
@@ -53,6 +57,9 @@ pub struct SceneFile {
     pub height: u32,
     pub renderer: RendererDesc,
 }
+
+/// The renderer types ember reads, for error messages.
+const SUPPORTED_TYPES: &str = "\"path\", \"mis\", \"lighttracer\" and \"bdpt\" (realtime = false), \"gi\" (realtime = true)";
 
 /// Largest film side accepted, so that a typo cannot ask for terabytes of image.
 pub const MAX_FILM_SIDE: u32 = 32_768;
@@ -172,11 +179,31 @@ impl SceneFile {
             None => "normal".to_string(),
         };
         let renderer = match (realtime, kind.as_str()) {
-            (false, "path") => RendererDesc::Path {
-                explicit: keys.boolean(renderer, "renderer", "isExplicit", true)?,
-                path: keys.path_desc(renderer, -1, 0.95)?,
-                spp: keys.positive(renderer, "spp", 1)?,
-            },
+            (false, kind @ ("path" | "mis" | "lighttracer" | "bdpt")) => {
+                let integrator = match kind {
+                    "path" => {
+                        if keys.boolean(renderer, "renderer", "isExplicit", true)? {
+                            Integrator::PathExplicit
+                        } else {
+                            Integrator::PathImplicit
+                        }
+                    }
+                    "mis" => Integrator::PathMis,
+                    "lighttracer" => Integrator::LightTracing,
+                    _ => Integrator::Bdpt(keys.heuristic(renderer)?),
+                };
+                let path_desc = keys.path_desc(renderer, -1, 0.95)?;
+                if let Integrator::Bdpt(_) = integrator {
+                    check_depth(path_desc.max_depth).map_err(|e| {
+                        Error::in_file(path, format!("[renderer].maxDepth: {e}"))
+                    })?;
+                }
+                RendererDesc::Path {
+                    integrator,
+                    path: path_desc,
+                    spp: keys.positive(renderer, "spp", 1)?,
+                }
+            }
             (true, "gi") => RendererDesc::Gi {
                 // TinyRender's default rrProb for gi is written 9.95f, a typo for 0.95.
                 path: keys.path_desc(renderer, 5, 0.95)?,
@@ -187,7 +214,7 @@ impl SceneFile {
                 return Err(Error::in_file(
                     path,
                     format!(
-                        "[renderer].type = \"{}\" (realtime = {realtime}) is a TinyRender pass that ember does not implement; supported: \"path\" (realtime = false) and \"gi\" (realtime = true)",
+                        "[renderer].type = \"{}\" (realtime = {realtime}) is a TinyRender pass that ember does not implement; supported: {SUPPORTED_TYPES}",
                         quote(&kind)
                     ),
                 ))
@@ -196,7 +223,7 @@ impl SceneFile {
                 return Err(Error::in_file(
                     path,
                     format!(
-                        "[renderer].type = \"{}\" is not a renderer type (realtime = {realtime}); valid types: \"path\" (realtime = false) and \"gi\" (realtime = true)",
+                        "[renderer].type = \"{}\" is not a renderer type (realtime = {realtime}); valid types: {SUPPORTED_TYPES}",
                         quote(&kind)
                     ),
                 ))
@@ -318,6 +345,23 @@ impl<'a> Keys<'a> {
             None => Ok(default),
             Some(Value::Boolean(b)) => Ok(*b),
             Some(v) => Err(self.wrong_type(table, key, "a boolean", v)),
+        }
+    }
+
+    /// `[renderer].misHeuristic` of BDPT: `"power"` (the default) or `"balance"`.
+    fn heuristic(&self, t: &Table) -> Result<MisHeuristic> {
+        match t.get("misHeuristic") {
+            None => Ok(MisHeuristic::Power),
+            Some(Value::String(s)) if s == "power" => Ok(MisHeuristic::Power),
+            Some(Value::String(s)) if s == "balance" => Ok(MisHeuristic::Balance),
+            Some(Value::String(s)) => Err(Error::in_file(
+                self.path,
+                format!(
+                    "[renderer].misHeuristic = \"{}\" is not a heuristic; valid: \"power\" and \"balance\"",
+                    quote(s)
+                ),
+            )),
+            Some(v) => Err(self.wrong_type("renderer", "misHeuristic", "a string", v)),
         }
     }
 
