@@ -255,7 +255,10 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     let integrator = a.integrator.unwrap_or(integrator);
     if let Integrator::Bdpt(_) = integrator {
         ember_kernel::integrator::bdpt::check_depth(path.max_depth).map_err(|e| {
-            Error::in_file(&a.scene, format!("[renderer].maxDepth with --integrator bdpt: {e}"))
+            Error::in_file(
+                &a.scene,
+                format!("[renderer].maxDepth with --integrator bdpt: {e}"),
+            )
         })?;
     }
     let spp = a.spp.unwrap_or(scene_spp);

@@ -59,7 +59,8 @@ pub struct SceneFile {
 }
 
 /// The renderer types ember reads, for error messages.
-const SUPPORTED_TYPES: &str = "\"path\", \"mis\", \"lighttracer\" and \"bdpt\" (realtime = false), \"gi\" (realtime = true)";
+const SUPPORTED_TYPES: &str =
+    "\"path\", \"mis\", \"lighttracer\" and \"bdpt\" (realtime = false), \"gi\" (realtime = true)";
 
 /// Largest film side accepted, so that a typo cannot ask for terabytes of image.
 pub const MAX_FILM_SIDE: u32 = 32_768;
