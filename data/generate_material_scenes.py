@@ -437,18 +437,18 @@ ROUGH_CAMERA = ((0.0, 2.8, 5.6), (0.0, 0.3, -0.2), (0.0, 1.0, 0.0), 32.0)
 
 def rough_spheres():
     mesh = Mesh()
-    # Checker floor: 16 x 12 tiles of 0.5 m over x in [-4, 4], z in [-3, 3], two greys.
+    # Checker floor: 24 x 12 tiles of 0.5 m over x in [-6, 6], z in [-3, 3], two greys.
     tiles = [mesh.object("floor_light", "floor_light"), mesh.object("floor_dark", "floor_dark")]
     size = 0.5
-    for i in range(16):
+    for i in range(24):
         for j in range(12):
-            x0, z0 = -4.0 + i * size, -3.0 + j * size
+            x0, z0 = -6.0 + i * size, -3.0 + j * size
             quad = [(x0, 0.0, z0 + size), (x0 + size, 0.0, z0 + size), (x0 + size, 0.0, z0), (x0, 0.0, z0)]
             mesh.add_quad(tiles[(i + j) % 2], quad)
     # Backdrop at z = -3: vertical stripes (0.5 m) in three colours, 3 m high.
     stripes = [mesh.object(f"backdrop_{c}", f"backdrop_{c}") for c in ("blue", "orange", "white")]
-    for i in range(16):
-        x0 = -4.0 + i * size
+    for i in range(24):
+        x0 = -6.0 + i * size
         quad = [(x0, 0.0, -3.0), (x0 + size, 0.0, -3.0), (x0 + size, 3.0, -3.0), (x0, 3.0, -3.0)]
         mesh.add_quad(stripes[i % 3], quad)
     # The light: a 3 m x 1.2 m quad above the front of the rows, tilted by 30 degrees to face
