@@ -1,8 +1,8 @@
 //! Baking per-vertex global illumination (TinyRender's `gi` pass, FORMAT.md §6) and storing it
 //! as PLY.
 //!
-//! Vertices that share position, normal and material have the same expected radiance, so each
-//! such key is baked once: TinyRender bakes every face corner (3 per triangle); the count of
+//! Vertices that share position, normal and material (and texture coordinates, where the
+//! material is textured) have the same expected radiance, so each such key is baked once: TinyRender bakes every face corner (3 per triangle); the count of
 //! paths this saves is reported.
 //!
 //! The bake is written as binary little-endian PLY with float `red green blue` vertex
@@ -65,7 +65,7 @@ pub fn parse_estimator(s: &str) -> std::result::Result<BakeEstimator, String> {
 pub struct BakeReport {
     /// Face corners (3 per triangle): what TinyRender bakes.
     pub face_corners: usize,
-    /// Distinct (position, normal, material) keys actually baked.
+    /// Distinct (position, normal, material, uv of a textured material) keys actually baked.
     pub unique_keys: usize,
     pub paths_traced: u64,
     /// Paths a per-corner bake would have traced in addition.
@@ -77,8 +77,9 @@ pub struct BakeReport {
 /// baked (see [`BakeSettings::vertex_inset`]).
 pub const BAKE_INSET: f32 = 1e-3;
 
-/// Bit pattern key of a vertex: equal keys have equal expected radiance.
-type VertexKey = ([u32; 3], [u32; 3], u32);
+/// Bit pattern key of a vertex (position, normal, material, and texture coordinates when the
+/// material is textured, else 0): equal keys have equal expected radiance.
+type VertexKey = ([u32; 3], [u32; 3], u32, [u32; 2]);
 
 /// Bakes every vertex of the scene.
 ///
@@ -109,10 +110,19 @@ pub fn bake(scene: &LoadedScene, s: &BakeSettings) -> Result<(BakedMesh, BakeRep
     let vertex_key: Vec<u32> = (0..data.positions.len())
         .map(|v| {
             let (p, n, m) = (data.positions[v], data.normals[v], vertex_material[v]);
+            // `uvs` is empty in a scene without textures; an untextured material never reads
+            // the coordinates, so they do not split its vertices.
+            let uv = data.uvs.get(v).copied().unwrap_or(glam::Vec2::ZERO);
+            let textured = data.materials[m as usize].is_textured();
             let key = (
                 p.to_array().map(f32::to_bits),
                 n.to_array().map(f32::to_bits),
                 m,
+                if textured {
+                    uv.to_array().map(f32::to_bits)
+                } else {
+                    [0; 2]
+                },
             );
             *keys.entry(key).or_insert_with(|| {
                 // A vertex on the edge where two surfaces meet (a room corner) lies in both
@@ -132,7 +142,7 @@ pub fn bake(scene: &LoadedScene, s: &BakeSettings) -> Result<(BakedMesh, BakeRep
                     p,
                     n,
                     material: m,
-                    uv: glam::Vec2::ZERO,
+                    uv,
                 });
                 (points.len() - 1) as u32
             })
@@ -227,7 +237,7 @@ fn modified(p: &Path) -> Option<std::time::SystemTime> {
     std::fs::metadata(p).and_then(|m| m.modified()).ok()
 }
 
-/// Reads the bake at `path` when it is newer than the scene's TOML, OBJ and MTL files and was
+/// Reads the bake at `path` when it is newer than the scene's TOML, OBJ, MTL and texture files and was
 /// made with the same settings; otherwise bakes and stores it there (a store that fails, e.g.
 /// in a read-only folder, is reported as a warning and the bake is still returned).
 ///
@@ -242,7 +252,14 @@ pub fn load_or_bake(
     let newest_input = inputs
         .iter()
         .filter_map(|p| modified(p))
-        .chain(scene.data.mtl_files.iter().filter_map(|p| modified(p)))
+        .chain(
+            scene
+                .data
+                .mtl_files
+                .iter()
+                .chain(&scene.data.texture_files)
+                .filter_map(|p| modified(p)),
+        )
         .max();
     if let (Some(bake_time), Some(input_time)) = (modified(path), newest_input) {
         if bake_time > input_time {

@@ -85,8 +85,12 @@ pub fn scene_toml(bytes: &[u8]) -> Outcome {
     }
 }
 
+/// The texture served for every texture file the fuzz inputs can find: a 2×2 binary PPM.
+pub const TEXTURE_PPM: &[u8] = b"P6\n2 2\n255\n\xff\x00\x00\x00\xff\x00\x00\x00\xff\xff\xff\xff";
+
 /// An OBJ whose `mtllib` files all read as `mtl`. Texture maps exist when their file name
-/// starts with `t` (so both a found and a missing `map_Kd` can be reached).
+/// starts with `t` (so both a found and a missing `map_Kd` can be reached); they hold
+/// [`TEXTURE_PPM`].
 ///
 /// # Panics
 /// When the loader breaks its contract (see the module documentation).
@@ -99,7 +103,7 @@ pub fn obj(obj: &[u8], mtl: &[u8]) -> Outcome {
         if p.extension().is_some_and(|e| e == "mtl") {
             Some(mtl.to_vec())
         } else if name.starts_with('t') {
-            Some(Vec::new())
+            Some(TEXTURE_PPM.to_vec())
         } else {
             None
         }
@@ -113,6 +117,13 @@ pub fn obj(obj: &[u8], mtl: &[u8]) -> Outcome {
             assert!(scene.positions.iter().all(|p| p.is_finite()));
             assert!(scene.emitter_cdf.iter().all(|c| c.is_finite()));
             assert_eq!(scene.view().validate(), Ok(()));
+            let textured = scene.materials.iter().any(|m| m.is_textured());
+            assert_eq!(
+                scene.uvs.is_empty(),
+                !textured,
+                "texture coordinates kept without textures, or missing with them"
+            );
+            assert!(scene.uvs.iter().all(|uv| uv.is_finite()));
             Outcome::Loaded
         }
         Err(e) => {

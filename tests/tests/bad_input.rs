@@ -741,18 +741,127 @@ fn mtl_missing_texture() {
 }
 
 #[test]
-fn mtl_texture_found_renders_with_a_warning() {
-    // Positive control of the case above: TinyRender loads `<name>.ppm` whatever extension is
-    // written, so wood.ppm satisfies map_Kd wood.png. Textures are not used yet: a warning.
+fn mtl_texture_found_renders() {
+    // Positive control of the cases above and below: TinyRender loads `<name>.ppm` whatever
+    // extension is written, so wood.ppm satisfies map_Kd wood.png.
     let mtl = edit(QUAD_MTL, "illum 7", "illum 7\nmap_Kd wood.png");
-    let (dir, scene) = scene_dir("texture-found", SCENE_TOML, QUAD_OBJ, &mtl);
-    dir.write("wood.ppm", "P6\n1 1\n255\n\0\0\0");
+    let (dir, scene) = scene_dir("texture-found", SCENE_TOML, UV_QUAD_OBJ, &mtl);
+    std::fs::write(dir.path().join("wood.ppm"), b"P6\n1 1\n255\n\x80\x80\x80").expect("write");
     let out = render(&scene, &["--spp", "1"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "exit {:?}: {stderr}", out.status);
-    assert!(
-        stderr.contains("warning:") && stderr.contains("texture maps are not supported"),
-        "{stderr}"
+    assert!(!stderr.contains("warning"), "{stderr}");
+}
+
+/// [`QUAD_OBJ`] with texture coordinates at its corners.
+const UV_QUAD_OBJ: &str = "mtllib quad.mtl
+o light
+v -1 -1 0
+v 1 -1 0
+v 1 1 0
+v -1 1 0
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+vn 0 0 1
+usemtl light
+f 1/1/1 2/2/1 3/3/1 4/4/1
+";
+
+/// A texture case: `QUAD_MTL` with `map` on line 5 and the file `name` holding `bytes`.
+#[track_caller]
+fn texture_case(case: &str, map: &str, name: &str, bytes: &[u8], expected: &str) {
+    let mtl = edit(QUAD_MTL, "illum 7", &format!("illum 7\n{map}"));
+    mesh_case_exact(case, UV_QUAD_OBJ, &mtl, &[(name, bytes)], expected);
+}
+
+#[test]
+fn mtl_missing_texture_exact() {
+    texture_case(
+        "map_Kd names a missing file (exact)",
+        "map_Kd wood.png",
+        "other.ppm",
+        b"",
+        "<dir>/quad.mtl: line 5: material 'light': map_Kd texture <dir>/wood.png not found",
+    );
+}
+
+#[test]
+fn texture_truncated() {
+    texture_case(
+        "truncated PPM",
+        "map_Kd wood.ppm",
+        "wood.ppm",
+        b"P6\n2 2\n255\n\x01\x02\x03",
+        "<dir>/quad.mtl: line 5: material 'light': map_Kd texture <dir>/wood.ppm: truncated PPM: expected 12 bytes of pixels, found 3",
+    );
+}
+
+#[test]
+fn texture_not_an_image() {
+    texture_case(
+        "texture is not an image",
+        "map_Kd notes.jpg",
+        "notes.jpg",
+        b"these are my notes",
+        "<dir>/quad.mtl: line 5: material 'light': map_Kd texture <dir>/notes.jpg: not an image (expected binary PPM (P6), PNG or JPEG)",
+    );
+}
+
+#[test]
+fn texture_bad_ppm_header() {
+    texture_case(
+        "PPM header with a word for the height",
+        "map_Kd wood.ppm",
+        "wood.ppm",
+        b"P6\n2 tall\n255\n",
+        "<dir>/quad.mtl: line 5: material 'light': map_Kd texture <dir>/wood.ppm: bad PPM header: the height is not a number (found 't')",
+    );
+}
+
+#[test]
+fn texture_zero_size() {
+    texture_case(
+        "PPM of width 0",
+        "map_Kd wood.ppm",
+        "wood.ppm",
+        b"P6\n0 2\n255\n",
+        "<dir>/quad.mtl: line 5: material 'light': map_Kd texture <dir>/wood.ppm: image size 0x2 is empty",
+    );
+}
+
+#[test]
+fn texture_absurd_size() {
+    texture_case(
+        "PPM of 100000 x 100000",
+        "map_Kd wood.ppm",
+        "wood.ppm",
+        b"P6\n100000 100000\n255\n",
+        "<dir>/quad.mtl: line 5: material 'light': map_Kd texture <dir>/wood.ppm: image size 100000x100000 is larger than 16384x16384",
+    );
+}
+
+#[test]
+fn texture_bad_map_option() {
+    texture_case(
+        "map option -clamp with a bad value",
+        "map_Kd -clamp maybe wood.ppm",
+        "wood.ppm",
+        b"P6\n1 1\n255\n\0\0\0",
+        "<dir>/quad.mtl: line 5: material 'light': map_Kd option -clamp must be on or off, found 'maybe'",
+    );
+}
+
+#[test]
+fn textured_object_without_texture_coordinates() {
+    let mtl = edit(QUAD_MTL, "illum 7", "illum 7\nmap_Kd wood.ppm");
+    mesh_case_exact(
+        "textured material on an object without vt",
+        QUAD_OBJ,
+        &mtl,
+        &[("wood.ppm", b"P6\n1 1\n255\n\0\0\0")],
+        "<dir>/quad.obj: object 'light' uses the textured material 'light' but has faces without texture coordinates (write faces as f v/vt/vn)",
     );
 }
 

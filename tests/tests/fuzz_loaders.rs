@@ -176,6 +176,30 @@ fn regression_fov_underflow() {
     );
 }
 
+/// The textured seed loads with its texture (the harness serves [`fuzzing::TEXTURE_PPM`] for
+/// texture names starting with `t`), so mutations reach texture decoding and coordinates.
+#[test]
+fn textured_seed_loads_with_its_texture() {
+    let input = regression("obj_mtl", "seed-textured-quad");
+    assert_eq!(run("obj_mtl", &input), Outcome::Loaded);
+    let (obj, mtl) = fuzzing::split_obj_mtl(&input);
+    let files = |p: &Path| {
+        if p.extension()? == "mtl" {
+            Some(mtl.to_vec())
+        } else {
+            p.file_name()?
+                .to_string_lossy()
+                .starts_with('t')
+                .then(|| fuzzing::TEXTURE_PPM.to_vec())
+        }
+    };
+    let scene = ember_cli::mesh::SceneData::parse_obj(Path::new(fuzzing::OBJ_PATH), obj, &files)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.texels.len(), 4);
+    assert_eq!(scene.textures.len(), 2, "tex.ppm with and without -s/-o");
+    assert_eq!(scene.uvs.len(), scene.positions.len());
+}
+
 // ---- mutations of the corpus ---------------------------------------------------------------
 
 /// Words a mutation inserts or substitutes: numbers at and past the limits of f32, i64 and
@@ -236,7 +260,19 @@ const INTERESTING: &[&str] = &[
     "Ke",
     "Ns",
     "illum",
+    "Ni",
+    "Pr",
+    "Tf",
+    "spectral",
     "map_Kd",
+    "map_Ks",
+    "-s",
+    "-o",
+    "-bm",
+    "-clamp",
+    "-mm",
+    "-imfchan",
+    "on",
     "tex.ppm",
     "missing.png",
     "[input]",

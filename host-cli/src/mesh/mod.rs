@@ -8,18 +8,21 @@
 //!   line numbers;
 //! - [`mtl`]: MTL files are parsed here, so that every value ember uses is checked and its
 //!   errors name the line, the material and the key; `illum` selects the scattering model;
-//! - [`scene`]: the objects and materials assembled into [`SceneData`], its kernel view, the
-//!   emitter table and the BVH;
-//! - [`files`]: where companion files come from; [`quote`]: names in messages.
+//! - [`texture`]: texture files (PPM, PNG, JPEG) decoded to linear texels as TinyRender
+//!   reads them, each file once;
+//! - [`scene`]: the objects, materials and textures assembled into [`SceneData`], its kernel
+//!   view, the emitter table and the BVH;
+//! - [`files`]: where companion files come from; `quote`: names in messages.
 
 pub mod files;
 pub mod mtl;
 pub mod obj;
 mod quote;
 pub mod scene;
+pub mod texture;
 
 pub use files::{Disk, FileSource};
-pub use mtl::bsdf_for;
+pub use mtl::{bsdf_for, Model};
 pub use obj::MAX_MATERIALS;
 pub(crate) use quote::quote;
 pub use scene::{MaterialInfo, Object, SceneData, MAX_ELEMENTS};

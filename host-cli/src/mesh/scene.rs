@@ -1,17 +1,21 @@
-//! Scene assembly: the objects and materials of an OBJ in the flat, host-owned buffers the
-//! kernel reads, with the emitter table and the BVH.
+//! Scene assembly: the objects, materials and textures of an OBJ in the flat, host-owned
+//! buffers the kernel reads, with the emitter table and the BVH.
 
 use super::files::{Disk, FileSource};
+use super::mtl::{MtlMaterial, Param, TextureMap};
 use super::obj::read_obj;
-use super::quote::quote;
+use super::quote::{escape, quote};
+use super::texture::TextureTable;
 use crate::error::{Error, Result};
 use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy, EmitterTableError};
 use ember_kernel::geometry::Aabb;
+use ember_kernel::material::Reflectance;
 use ember_kernel::scene::{Material, SceneView};
+use ember_kernel::texture::{Texture, Textures};
 use ember_kernel::Rgb;
-use glam::Vec3;
-use std::path::Path;
+use glam::{Vec2, Vec3};
+use std::path::{Path, PathBuf};
 
 /// Most vertices or triangles a scene may have: the kernel indexes them with `u32`.
 pub const MAX_ELEMENTS: usize = u32::MAX as usize;
@@ -55,7 +59,15 @@ pub struct SceneData {
     /// Wall time of the last BVH build.
     pub bvh_build_seconds: f64,
     /// The MTL files the OBJ loaded.
-    pub mtl_files: Vec<std::path::PathBuf>,
+    pub mtl_files: Vec<PathBuf>,
+    /// Texture coordinates per vertex, indexed like `positions`; empty unless a material is
+    /// textured.
+    pub uvs: Vec<Vec2>,
+    /// The texture table and its texels (bottom row first), empty without textures.
+    pub textures: Vec<Texture>,
+    pub texels: Vec<Rgb>,
+    /// The texture files decoded (each once).
+    pub texture_files: Vec<PathBuf>,
 }
 
 impl SceneData {
@@ -79,13 +91,15 @@ impl SceneData {
     /// emitter table and the BVH are built and the kernel view is validated. `path` names the
     /// OBJ in errors. [`SceneData::load_obj`] is this with the file read from disk.
     ///
-    /// Memory and time are linear in the size of the OBJ and its MTLs (each distinct `mtllib`
-    /// is read once; at most [`MAX_MATERIALS`] materials).
+    /// Memory and time are linear in the size of the OBJ, its MTLs and its textures (each
+    /// distinct `mtllib` and texture file is read once; at most [`super::MAX_MATERIALS`]
+    /// materials, textures of at most [`super::texture::MAX_TEXTURE_SIDE`]² texels).
     ///
     /// # Errors
     /// Malformed OBJ or MTL (with the line), face indices out of range, faces without normals,
-    /// non-finite coordinates, missing MTL or texture files, invalid material values, a scene
-    /// without triangles. Every error names the file it is about.
+    /// non-finite coordinates, missing MTL or texture files, invalid material values, texture
+    /// files that are not valid images (with the MTL line), textured objects without texture
+    /// coordinates, a scene without triangles. Every error names the file it is about.
     pub fn parse_obj(path: &Path, obj: &[u8], files: &dyn FileSource) -> Result<Self> {
         let obj_file = read_obj(path, obj, files)?;
         let models = obj_file.models;
@@ -94,25 +108,10 @@ impl SceneData {
             mtl_files: libraries.iter().map(|(p, _)| p.clone()).collect(),
             ..Self::default()
         };
-        for (_, library) in &libraries {
-            for m in library {
-                if m.has_texture {
-                    scene.warnings.push(format!(
-                        "material '{}': texture maps are not supported yet; using Kd/Ks",
-                        quote(&m.name)
-                    ));
-                }
-                scene.warnings.extend(m.warning());
-                scene.materials.push(Material {
-                    surface: m.surface(),
-                    emission: m.ke,
-                });
-                scene.material_info.push(MaterialInfo {
-                    name: m.name.clone(),
-                    illum: m.illum,
-                });
-            }
-        }
+        scene.add_materials(&libraries, files)?;
+        // Texture coordinates are kept only when a material is textured; the scenes without
+        // textures (all of TinyRender's but one) keep `uvs` empty and never look at them.
+        let textured_scene = scene.materials.iter().any(Material::is_textured);
         // Faces without a material get tinyobj's defaults: Kd = Ks = Ke = 0, Ns = 1, illum 0.
         let mut default_material = None;
 
@@ -164,6 +163,9 @@ impl SceneData {
                     (scene.materials.len() - 1) as u32
                 }),
             };
+            if textured_scene {
+                scene.add_uvs(path, model, material)?;
+            }
             let base = scene.positions.len() as u32;
             let first_tri = scene.triangles.len() as u32;
             for (i, (p, n)) in mesh
@@ -214,6 +216,120 @@ impl SceneData {
             .validate()
             .map_err(|e| Error::in_file(path, e.to_string()))?;
         Ok(scene)
+    }
+
+    /// The kernel materials of the MTL libraries, in tobj's id order (library by library),
+    /// with the texture maps their models apply decoded into the texture table.
+    ///
+    /// # Errors
+    /// A texture file that cannot be read or decoded, named with its MTL line.
+    fn add_materials(
+        &mut self,
+        libraries: &[(PathBuf, Vec<MtlMaterial>)],
+        files: &dyn FileSource,
+    ) -> Result<()> {
+        let mut table = TextureTable::default();
+        // Each map option ember ignores, with where it was first given.
+        let mut ignored: Vec<(&'static str, String)> = Vec::new();
+        for (library, materials) in libraries {
+            let lib_name = library.file_name().map_or_else(
+                || library.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            for m in materials {
+                self.warnings.extend(m.warnings());
+                // Only maps the model applies reach the table: a material without them (and so
+                // a scene without textures) reads and decodes no file.
+                let mut param = |map: Option<&TextureMap>, key: &str, constant: Rgb| {
+                    let Some(map) = map else {
+                        return Ok(Param::constant(constant));
+                    };
+                    let t = table
+                        .get(&map.file, map.options.scale, map.options.offset, files)
+                        .map_err(|e| {
+                            Error::in_file(
+                                library,
+                                format!(
+                                    "line {}: material '{}': {key} texture {}: {e}",
+                                    map.line,
+                                    quote(&m.name),
+                                    escape(&map.file.display().to_string())
+                                ),
+                            )
+                        })?;
+                    for &o in &map.options.ignored {
+                        if !ignored.iter().any(|(seen, _)| *seen == o) {
+                            ignored.push((o, format!("{} line {}", escape(&lib_name), map.line)));
+                        }
+                    }
+                    Ok::<_, Error>(Param {
+                        reflectance: Reflectance::texture(t.id),
+                        max: t.max,
+                        avg: t.avg,
+                    })
+                };
+                let [kd_map, ks_map] = m.applied_maps();
+                let kd = param(kd_map, "map_Kd", m.kd)?;
+                let ks = param(ks_map, "map_Ks", m.ks)?;
+                self.materials.push(Material {
+                    surface: m.surface(kd, ks),
+                    emission: m.ke,
+                });
+                self.material_info.push(MaterialInfo {
+                    name: m.name.clone(),
+                    illum: m.illum,
+                });
+            }
+        }
+        if !ignored.is_empty() {
+            let list: Vec<String> = ignored
+                .iter()
+                .map(|(o, at)| format!("{o} ({at})"))
+                .collect();
+            self.warnings.push(format!(
+                "texture map options not supported, ignored (ember applies -s and -o): {}",
+                list.join(", ")
+            ));
+        }
+        self.textures = table.textures;
+        self.texels = table.texels;
+        self.texture_files = table.files;
+        Ok(())
+    }
+
+    /// Appends the texture coordinates of an object's vertices (zeros for an object whose
+    /// material is not textured: they are never read).
+    ///
+    /// # Errors
+    /// A textured object whose vertices lack texture coordinates, or with non-finite ones.
+    fn add_uvs(&mut self, path: &Path, model: &tobj::Model, material: u32) -> Result<()> {
+        let mesh = &model.mesh;
+        let nv = mesh.positions.len() / 3;
+        if !self.materials[material as usize].is_textured() {
+            self.uvs.resize(self.uvs.len() + nv, Vec2::ZERO);
+            return Ok(());
+        }
+        let name = quote(&model.name);
+        if mesh.texcoords.len() != 2 * nv {
+            return Err(Error::in_file(
+                path,
+                format!(
+                    "object '{name}' uses the textured material '{}' but has faces without texture coordinates (write faces as f v/vt/vn)",
+                    quote(&self.material_info[material as usize].name)
+                ),
+            ));
+        }
+        for (i, uv) in mesh.texcoords.chunks_exact(2).enumerate() {
+            let uv = Vec2::new(uv[0], uv[1]);
+            if !uv.is_finite() {
+                return Err(Error::in_file(
+                    path,
+                    format!("object '{name}': vertex {i} has non-finite texture coordinates"),
+                ));
+            }
+            self.uvs.push(uv);
+        }
+        Ok(())
     }
 
     #[must_use]
@@ -308,11 +424,15 @@ impl SceneData {
                 prim_order: &self.bvh_prim_order,
             }
             .into(),
-            textures: ember_kernel::texture::Textures::NONE,
+            textures: Textures {
+                uvs: &self.uvs,
+                textures: &self.textures,
+                texels: &self.texels,
+            },
         }
     }
 
-    /// Bytes of kernel scene data per triangle (geometry, materials, emitters, BVH).
+    /// Bytes of kernel scene data (geometry, materials, textures, emitters, BVH).
     #[must_use]
     pub fn kernel_bytes(&self) -> usize {
         use std::mem::size_of_val;
@@ -325,6 +445,9 @@ impl SceneData {
             + size_of_val(self.emitter_cdf.as_slice())
             + size_of_val(self.bvh_nodes.as_slice())
             + size_of_val(self.bvh_prim_order.as_slice())
+            + size_of_val(self.uvs.as_slice())
+            + size_of_val(self.textures.as_slice())
+            + size_of_val(self.texels.as_slice())
     }
 }
 
@@ -345,5 +468,176 @@ mod tests {
         assert_eq!(disk.materials, memory.materials);
         assert_eq!(disk.bvh_prim_order, memory.bvh_prim_order);
         assert_eq!(disk.triangles.len(), 32);
+    }
+
+    use crate::mesh::{parse_for_test, TEST_QUAD};
+    use ember_kernel::bsdf::Phong;
+    use ember_kernel::material::{PhongParams, Surface};
+    use ember_kernel::texture::{texel_stats, NO_TEXTURE};
+    use std::cell::RefCell;
+
+    /// [`TEST_QUAD`] with texture coordinates (0,0) (1,0) (1,1) (0,1) at its corners.
+    const UV_QUAD: &str = "mtllib quad.mtl\no light\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nusemtl light\nf 1/1/1 2/2/1 3/3/1 4/4/1\n";
+
+    /// A 2×1 PPM: a red and a green pixel.
+    const PPM: &[u8] = b"P6\n2 1\n255\n\xff\x00\x00\x00\xff\x00";
+
+    /// Loads with `files` serving `PPM` for every texture, recording the textures read.
+    fn load(obj: &str, mtl: &str) -> (Result<SceneData>, Vec<std::path::PathBuf>) {
+        let reads = RefCell::new(Vec::new());
+        let r = parse_for_test(obj, mtl, |p| {
+            reads.borrow_mut().push(p.to_path_buf());
+            Some(PPM.to_vec())
+        });
+        (r, reads.into_inner())
+    }
+
+    #[test]
+    fn textured_diffuse_quad() {
+        let (s, _) = load(
+            UV_QUAD,
+            "newmtl light\nKd 0.5 0.5 0.5\nillum 7\nmap_Kd -s 2 1 1 t.ppm\n",
+        );
+        let s = s.unwrap();
+        assert_eq!(
+            s.materials[0].surface,
+            Surface::Diffuse {
+                kd: Reflectance::texture(0)
+            }
+        );
+        assert_eq!(s.uvs.len(), s.positions.len());
+        let mut uvs: Vec<[f32; 2]> = s.uvs.iter().map(|u| u.to_array()).collect();
+        uvs.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        assert_eq!(uvs, [[0.0, 0.0], [0.0, 1.0], [1.0, 0.0], [1.0, 1.0]]);
+        assert_eq!(s.texels, [Rgb::X, Rgb::Y]);
+        assert_eq!(s.textures.len(), 1);
+        assert_eq!(s.textures[0].uv_scale, Vec2::new(2.0, 1.0));
+        assert_eq!(s.texture_files, [Path::new("m/t.ppm")]);
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        // The kernel reads the texel at the hit's interpolated coordinates.
+        let view = s.view();
+        let bsdf = s.materials[0].bsdf(&view.textures, || Vec2::new(0.3, 0.5));
+        assert_eq!(
+            bsdf,
+            Material::diffuse(Rgb::Y).constant_bsdf(),
+            "u·2 = 0.6: the green texel"
+        );
+    }
+
+    #[test]
+    fn textured_phong_weights_come_from_the_texels() {
+        let mtl = "newmtl light\nKd 0.1 0.1 0.1\nKs 0.4 0.4 0.4\nNs 12\nillum 8\nmap_Kd t.ppm\n";
+        let s = load(UV_QUAD, mtl).0.unwrap();
+        let (max, avg) = texel_stats(&[Rgb::X, Rgb::Y]).unwrap();
+        let ks = Rgb::splat(0.4);
+        let (scale, specular_weight) = Phong::weights(max, ks, avg, ks);
+        assert_eq!(
+            s.materials[0].surface,
+            Surface::Mixture(PhongParams {
+                kd: Reflectance::texture(0),
+                ks: Reflectance::constant(ks),
+                exponent: 12.0,
+                scale,
+                specular_weight,
+            })
+        );
+        // Both maps of one file: one decode, one texture; a conductor's map_Ks applies too.
+        // `./t.ppm` is the same path (paths compare by components).
+        let mtl = "newmtl light\nillum 2\nmap_Kd t.ppm\nmap_Ks t.ppm\nnewmtl metal\nillum 5\nPr 0.5\nmap_Ks ./t.ppm\n";
+        let (s, calls) = load(UV_QUAD, mtl);
+        let s = s.unwrap();
+        assert_eq!(s.materials[0].texture_ids(), [0, 0]);
+        assert_eq!(
+            s.materials[1].surface,
+            Surface::Conductor {
+                ks: Reflectance::texture(0),
+                alpha: 0.25
+            }
+        );
+        assert_eq!(s.textures.len(), 1);
+        assert_eq!(s.texture_files, [Path::new("m/t.ppm")]);
+        // Three existence checks while parsing the MTL, then one read.
+        assert_eq!(calls.len(), 4, "{calls:?}");
+    }
+
+    #[test]
+    fn maps_a_model_does_not_read_are_not_loaded() {
+        let mtl = "newmtl light\nNi 1.5\nillum 6\nmap_Kd t.ppm\nmap_Ks t.ppm\n";
+        let (s, reads) = load(TEST_QUAD, mtl);
+        let s = s.unwrap();
+        assert_eq!(s.materials[0].texture_ids(), [NO_TEXTURE; 2]);
+        assert!(s.uvs.is_empty() && s.textures.is_empty() && s.texels.is_empty());
+        // Found (is_file), never read.
+        assert_eq!(reads.len(), 2, "{reads:?}");
+        assert_eq!(
+            s.warnings,
+            [
+                "material 'light': map_Kd does not apply to illum 6 (dielectric); not loaded",
+                "material 'light': map_Ks does not apply to illum 6 (dielectric); not loaded"
+            ]
+        );
+        let s = load(TEST_QUAD, "newmtl light\nillum 7\nmap_Ks t.ppm\n")
+            .0
+            .unwrap();
+        assert_eq!(
+            s.warnings,
+            ["material 'light': map_Ks does not apply to illum 7 (diffuse); not loaded"]
+        );
+    }
+
+    #[test]
+    fn scenes_without_textures_keep_no_coordinates() {
+        // The OBJ has vt lines, no material is textured: nothing is kept, no file is read.
+        let (s, reads) = load(UV_QUAD, "newmtl light\nKd 1 1 1\nillum 7\n");
+        let s = s.unwrap();
+        assert!(reads.is_empty());
+        assert!(s.uvs.is_empty() && s.textures.is_empty() && s.texture_files.is_empty());
+        // A textured material in the scene: every vertex has coordinates, zeros for objects
+        // whose material is not textured.
+        let obj = format!(
+            "{UV_QUAD}o plain\nv 0 0 1\nv 1 0 1\nv 0 1 1\nusemtl plain\nf 5//1 6//1 7//1\n"
+        );
+        let mtl = "newmtl light\nillum 7\nmap_Kd t.ppm\nnewmtl plain\nKd 1 1 1\nillum 7\n";
+        let s = load(&obj, mtl).0.unwrap();
+        assert_eq!(s.uvs.len(), 7);
+        assert_eq!(&s.uvs[4..], [Vec2::ZERO; 3]);
+    }
+
+    #[test]
+    fn texture_errors_name_the_mtl_line() {
+        let e = |obj: &str, mtl: &str, texture: &'static [u8]| {
+            parse_for_test(obj, mtl, |_| Some(texture.to_vec()))
+                .unwrap_err()
+                .to_string()
+        };
+        let mtl = "newmtl light\nillum 7\nmap_Kd -o 0.5 0 0 t.png\n";
+        assert_eq!(
+            e(UV_QUAD, mtl, b"P6\n2 2\n255\n\x01\x02\x03"),
+            "m/quad.mtl: line 3: material 'light': map_Kd texture m/t.png: truncated PPM: expected 12 bytes of pixels, found 3"
+        );
+        assert_eq!(
+            e(UV_QUAD, mtl, b"<html>"),
+            "m/quad.mtl: line 3: material 'light': map_Kd texture m/t.png: not an image (expected binary PPM (P6), PNG or JPEG)"
+        );
+        // A textured object without texture coordinates.
+        assert_eq!(
+            e(TEST_QUAD, mtl, PPM),
+            "m/quad.obj: object 'light' uses the textured material 'light' but has faces without texture coordinates (write faces as f v/vt/vn)"
+        );
+        let nan = UV_QUAD.replace("vt 1 1", "vt nan 1");
+        assert_eq!(
+            e(&nan, mtl, PPM),
+            "m/quad.obj: object 'light': vertex 2 has non-finite texture coordinates"
+        );
+    }
+
+    #[test]
+    fn ignored_map_options_are_named_in_one_warning() {
+        let mtl = "newmtl light\nillum 8\nmap_Kd -bm 0.5 -clamp on t.ppm\nmap_Ks -clamp off -texres 64 t.ppm\n";
+        let s = load(UV_QUAD, mtl).0.unwrap();
+        assert_eq!(
+            s.warnings,
+            ["texture map options not supported, ignored (ember applies -s and -o): -bm (quad.mtl line 3), -clamp (quad.mtl line 3), -texres (quad.mtl line 4)"]
+        );
     }
 }
