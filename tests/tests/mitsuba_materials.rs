@@ -60,8 +60,8 @@ struct Case {
 /// z-test is then anti-conservative. Measured over seeds (`EMBER_SEED_OFFSET`): at 128 spp 4
 /// of 14 comparisons had a block |z| above the critical 4.14 (up to 6.2, mean z² up to 1.6);
 /// at 256 spp 10 of 10 passed (max |z| 1.9–3.4), at 384 spp 8 of 8 (≤ 3.7), at 512 and 1024
-/// spp the base seeds gave ≤ 3.3 with mean z² 0.8–1.1. About 30 s for the four renders
-/// of the two tests on two free cores.
+/// spp the base seeds gave ≤ 3.3 with mean z² 0.8–1.1. The four renders of the two tests
+/// take 62 s of CPU, about 30 s on two free cores (39–45 s measured on a shared machine).
 const CASES: &[Case] = &[
     Case {
         stem: "mirror_glass",
