@@ -437,18 +437,18 @@ ROUGH_CAMERA = ((0.0, 2.8, 5.6), (0.0, 0.3, -0.2), (0.0, 1.0, 0.0), 32.0)
 
 def rough_spheres():
     mesh = Mesh()
-    # Checker floor: 16 x 12 tiles of 0.5 m over x in [-4, 4], z in [-3, 3], two greys.
+    # Checker floor: 24 x 12 tiles of 0.5 m over x in [-6, 6], z in [-3, 3], two greys.
     tiles = [mesh.object("floor_light", "floor_light"), mesh.object("floor_dark", "floor_dark")]
     size = 0.5
-    for i in range(16):
+    for i in range(24):
         for j in range(12):
-            x0, z0 = -4.0 + i * size, -3.0 + j * size
+            x0, z0 = -6.0 + i * size, -3.0 + j * size
             quad = [(x0, 0.0, z0 + size), (x0 + size, 0.0, z0 + size), (x0 + size, 0.0, z0), (x0, 0.0, z0)]
             mesh.add_quad(tiles[(i + j) % 2], quad)
     # Backdrop at z = -3: vertical stripes (0.5 m) in three colours, 3 m high.
     stripes = [mesh.object(f"backdrop_{c}", f"backdrop_{c}") for c in ("blue", "orange", "white")]
-    for i in range(16):
-        x0 = -4.0 + i * size
+    for i in range(24):
+        x0 = -6.0 + i * size
         quad = [(x0, 0.0, -3.0), (x0 + size, 0.0, -3.0), (x0 + size, 3.0, -3.0), (x0, 3.0, -3.0)]
         mesh.add_quad(stripes[i % 3], quad)
     # The light: a 3 m x 1.2 m quad above the front of the rows, tilted by 30 degrees to face
@@ -514,16 +514,17 @@ TEXTURED_CAMERA = ((0.0, 1.4, 3.6), (0.0, 0.55, 0.0), (0.0, 1.0, 0.0), 40.0)
 
 def textured(plain, checker_mean, rings_mean):
     mesh = Mesh()
-    # Floor: 5 m x 5 m, the checker repeated 3 x 3 times (texture coordinates 0 .. 3).
+    # Floor: 8 m x 8 m, the checker repeated 4 x 4 times (texture coordinates 0 .. 4; a
+    # checker square is 0.25 m).
     mesh.quad(
         "floor", "floor",
-        [(-2.5, 0.0, 2.5), (2.5, 0.0, 2.5), (2.5, 0.0, -2.5), (-2.5, 0.0, -2.5)],
-        [(0, 0), (3, 0), (3, 3), (0, 3)],
+        [(-4.0, 0.0, 5.5), (4.0, 0.0, 5.5), (4.0, 0.0, -2.5), (-4.0, 0.0, -2.5)],
+        [(0, 0), (4, 0), (4, 4), (0, 4)],
     )
-    # Back wall (plain) with a poster showing the checker once, v = 1 at its top.
+    # Back wall (plain, 8 m x 4 m) with a poster showing the checker once, v = 1 at its top.
     mesh.quad(
         "back_wall", "wall",
-        [(-2.5, 0.0, -2.5), (2.5, 0.0, -2.5), (2.5, 3.0, -2.5), (-2.5, 3.0, -2.5)],
+        [(-4.0, 0.0, -2.5), (4.0, 0.0, -2.5), (4.0, 4.0, -2.5), (-4.0, 4.0, -2.5)],
     )
     mesh.quad(
         "poster", "poster",
@@ -532,8 +533,8 @@ def textured(plain, checker_mean, rings_mean):
     )
     # A 0.8 m box turned by 30 degrees, the rings texture once on each face.
     mesh.box("box", "box", (0.25, 0.4, 0.0), (0.8, 0.8, 0.8), 30.0, uv=True)
-    # A 1.2 m x 1.2 m light 2.6 m up, facing down.
-    mesh.quad("light", "light", [(-0.6, 2.6, -0.6), (0.6, 2.6, -0.6), (0.6, 2.6, 0.6), (-0.6, 2.6, 0.6)])
+    # A 1.2 m x 1.2 m light 2.6 m up, a little in front of the box, facing down.
+    mesh.quad("light", "light", [(-0.6, 2.6, -0.1), (0.6, 2.6, -0.1), (0.6, 2.6, 1.1), (-0.6, 2.6, 1.1)])
     if plain:
         floor = [("Kd", rgb(checker_mean)), ("illum", "7")]
         poster = [("Kd", rgb(checker_mean)), ("illum", "7")]
@@ -549,7 +550,7 @@ def textured(plain, checker_mean, rings_mean):
         ("poster", poster, "Diffuse poster on the back wall."),
         ("box", box, "Diffuse + Phong mixture box."),
         ("wall", [("Kd", "0.6 0.6 0.6"), ("illum", "7")], None),
-        ("light", [("Kd", "0 0 0"), ("Ke", "8 8 8"), ("illum", "7")], None),
+        ("light", [("Kd", "0 0 0"), ("Ke", "20 20 20"), ("illum", "7")], None),
     ]
     stem = "textured_plain" if plain else "textured"
     obj = mesh.text(

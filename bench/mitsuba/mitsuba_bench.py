@@ -51,17 +51,60 @@ def log(msg):
 
 # ----------------------------------------------------------------------------- conversion
 def parse_mtl(path):
+    """The MTL keys the conversion uses, with tinyobj's defaults for missing ones (Kd = Ks =
+    Ke = 0, Ns = 1, Ni = 1, illum 0), Tf 1 1 1 and Pr absent (None)."""
     mats, cur = {}, None
     with open(path) as fh:
         for line in fh:
-            p = line.split()
-            if not p or p[0].startswith("#"):
+            p = line.split("#", 1)[0].split()
+            if not p:
                 continue
             if p[0] == "newmtl":
-                cur = mats.setdefault(p[1], {"Kd": [0.0] * 3, "Ke": [0.0] * 3})
-            elif cur is not None and p[0] in ("Kd", "Ke"):
+                cur = mats.setdefault(p[1], {
+                    "Kd": [0.0] * 3, "Ks": [0.0] * 3, "Ke": [0.0] * 3, "Tf": [1.0] * 3,
+                    "Ns": 1.0, "Ni": 1.0, "Pr": None, "illum": 0, "maps": [],
+                })
+            elif cur is None:
+                continue
+            elif p[0] in ("Kd", "Ks", "Ke", "Tf"):
                 cur[p[0]] = [float(v) for v in p[1:4]]
+            elif p[0] in ("Ns", "Ni", "Pr"):
+                cur[p[0]] = float(p[1])
+            elif p[0] == "illum":
+                cur["illum"] = int(p[1])
+            elif p[0] in ("map_Kd", "map_Ks"):
+                cur["maps"].append(p[0])
     return mats
+
+
+def bsdf_xml(name, m):
+    """The Mitsuba BSDF of an MTL material under ember's mapping: illum 7 (or no specular
+    part) diffuse Kd; illum 5 conductor with reflectance Ks at every angle (`material` none:
+    no Fresnel), a mirror for Pr absent or 0, else `roughconductor` GGX with alpha = Pr^2;
+    illum 6 dielectric with int_ior Ni, ext_ior 1 and specular_transmittance Tf, smooth for
+    Pr absent or 0, else `roughdielectric` GGX alpha = Pr^2. TinyRender's Phong and mixture
+    (illum 8 and others with Ks > 0) and texture maps have no Mitsuba equivalent: an error."""
+    rgb = lambda v: ", ".join(repr(float(x)) for x in v)  # noqa: E731
+    if m["maps"]:
+        sys.exit(f"material {name}: texture maps ({', '.join(m['maps'])}) are not converted")
+    illum, pr = m["illum"], m["Pr"]
+    rough = pr is not None and pr > 0
+    if illum == 5:
+        ks = f'<rgb name="specular_reflectance" value="{rgb(m["Ks"])}"/>'
+        if not rough:
+            return f'<bsdf type="conductor"><string name="material" value="none"/>{ks}</bsdf>'
+        return (f'<bsdf type="roughconductor"><string name="distribution" value="ggx"/>'
+                f'<float name="alpha" value="{pr * pr!r}"/><string name="material" value="none"/>{ks}</bsdf>')
+    if illum == 6:
+        common = (f'<float name="int_ior" value="{m["Ni"]!r}"/><float name="ext_ior" value="1.0"/>'
+                  f'<rgb name="specular_transmittance" value="{rgb(m["Tf"])}"/>')
+        if not rough:
+            return f'<bsdf type="dielectric">{common}</bsdf>'
+        return (f'<bsdf type="roughdielectric"><string name="distribution" value="ggx"/>'
+                f'<float name="alpha" value="{pr * pr!r}"/>{common}</bsdf>')
+    if illum == 7 or max(m["Ks"]) == 0:
+        return f'<bsdf type="diffuse"><rgb name="reflectance" value="{rgb(m["Kd"])}"/></bsdf>'
+    sys.exit(f"material {name}: illum {illum} with Ks > 0 (TinyRender Phong/mixture) has no Mitsuba equivalent")
 
 
 def split_obj(obj_path, out_dir):
@@ -123,8 +166,10 @@ def split_obj(obj_path, out_dir):
     return out, mtllib
 
 
-def convert(toml_path, out_dir, size):
-    """The Mitsuba XML scene of a TinyRender path-traced scene; returns (xml path, settings)."""
+def convert(toml_path, out_dir, width, height=None):
+    """The Mitsuba XML scene of a TinyRender path-traced scene at width x height (height
+    defaults to width); returns (xml path, settings)."""
+    height = width if height is None else height
     with open(toml_path, "rb") as fh:
         cfg = tomllib.load(fh)
     base = os.path.dirname(os.path.abspath(toml_path))
@@ -146,7 +191,7 @@ def convert(toml_path, out_dir, size):
         shapes.append(
             f"""  <shape type="obj" id="{name}">
     <string name="filename" value="{os.path.basename(path)}"/>
-    <bsdf type="diffuse"><rgb name="reflectance" value="{rgb(m["Kd"])}"/></bsdf>{emitter}
+    {bsdf_xml(mat, m)}{emitter}
   </shape>"""
         )
     # Mitsuba counts the emitter vertex in max_depth (1 = emitters seen directly); TinyRender
@@ -166,8 +211,8 @@ def convert(toml_path, out_dir, size):
     </transform>
     <sampler type="independent"><integer name="sample_count" value="1"/></sampler>
     <film type="hdrfilm">
-      <integer name="width" value="{size}"/>
-      <integer name="height" value="{size}"/>
+      <integer name="width" value="{width}"/>
+      <integer name="height" value="{height}"/>
       <rfilter type="box"/>
       <string name="pixel_format" value="rgb"/>
     </film>
@@ -179,6 +224,23 @@ def convert(toml_path, out_dir, size):
     with open(path, "w") as fh:
         fh.write(xml)
     return path, {"max_depth": max_depth, "rr_depth": rr_depth, "objects": len(objects)}
+
+
+def cpu_line():
+    """The CPU model and its SIMD extensions (every speed figure has to carry them)."""
+    model, flags = "unknown CPU", set()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                key, _, value = line.partition(":")
+                if key.strip() == "model name" and model == "unknown CPU":
+                    model = value.strip()
+                elif key.strip() == "flags" and not flags:
+                    flags = set(value.split())
+    except OSError:
+        pass
+    simd = [f for f in ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512bw", "avx512vl") if f in flags]
+    return f"CPU: {model}, {os.cpu_count()} logical cores; SIMD: {' '.join(simd) or 'none listed'}."
 
 
 # ----------------------------------------------------------------------------- statistics
@@ -293,7 +355,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ember", required=True, help="the ember binary")
     ap.add_argument("--scene", default=os.path.join(ROOT, "data/cornell-box/cornell_box.toml"))
-    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--size", type=int, default=256, help="square film side (default for --width and --height)")
+    ap.add_argument("--width", type=int, help="film width (default: --size)")
+    ap.add_argument("--height", type=int, help="film height (default: --size)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--ref-spp", type=int, default=4096, help="ember reference spp (total)")
     ap.add_argument("--mitsuba-ref-spp", type=int, default=4096, help="long Mitsuba render spp (total)")
@@ -307,19 +371,23 @@ def main():
     build = os.path.join(args.out, "build")
     os.makedirs(build, exist_ok=True)
     scene_name = os.path.splitext(os.path.basename(args.scene))[0]
-    pixels = args.size * args.size
+    width = args.width or args.size
+    height = args.height or args.size
+    pixels = width * height
     blocks = 8
     k = args.splits
-    if args.size % blocks or args.ref_spp % k or args.mitsuba_ref_spp % k:
-        sys.exit("--size must be a multiple of 8 and the reference spp multiples of --splits")
+    if width % blocks or height % blocks or args.ref_spp % k or args.mitsuba_ref_spp % k:
+        sys.exit("the film sides must be multiples of 8 and the reference spp multiples of --splits")
     report = []
 
     def say(line=""):
         log(line)
         report.append(line)
 
-    xml, info = convert(args.scene, build, args.size)
-    say(f"# ember vs Mitsuba 3: {scene_name}, {args.size}x{args.size}, {args.threads} threads")
+    xml, info = convert(args.scene, build, width, height)
+    say(f"# ember vs Mitsuba 3: {scene_name}, {width}x{height}, {args.threads} threads")
+    say()
+    say(cpu_line())
     say()
     say(f"Scene converted to {os.path.relpath(xml, args.out)} ({info['objects']} objects, "
         f"maxDepth {info['max_depth']}, rrDepth {info['rr_depth']}). Mitsuba's `path` integrator is MIS "
@@ -333,7 +401,7 @@ def main():
         p = os.path.join(build, f"ember_ref_{i}.exr")
         subprocess.run(
             [args.ember, "render", args.scene, "--integrator", "mis", "--spp", str(args.ref_spp // k),
-             "--seed", str(1000 + i), "--width", str(args.size), "--height", str(args.size),
+             "--seed", str(1000 + i), "--width", str(width), "--height", str(height),
              "--threads", str(args.threads), "-q", "-o", p],
             check=True, stderr=subprocess.DEVNULL)
         splits.append(read_exr(p))

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# ember against Mitsuba 3 on the Cornell box (data/cornell-box): relative MSE against time for
+# ember against Mitsuba 3 on the Cornell box (data/cornell-box; another scene with SCENE=...,
+# e.g. SCENE=data/mirror-glass/mirror_glass.toml WIDTH=320 HEIGHT=240): relative MSE against time for
 # ember's `mis` integrator and Mitsuba's `path` integrator (scalar_rgb and llvm_ad_rgb), same
 # scene, film, threads and reference, in one run on one machine. See mitsuba_bench.py.
 #
@@ -13,51 +14,26 @@
 # the figures are only comparable within one run.
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
-ROOT="$(cd "$HERE/../.." && pwd)"
-VENV="$ROOT/bench/venv"
 
+SCENE="${SCENE:-data/cornell-box/cornell_box.toml}"   # relative to the repository root, or absolute
 SIZE="${SIZE:-256}"
+WIDTH="${WIDTH:-$SIZE}"
+HEIGHT="${HEIGHT:-$SIZE}"
 THREADS="${THREADS:-2}"
 REF_SPP="${REF_SPP:-4096}"
 MITSUBA_REF_SPP="${MITSUBA_REF_SPP:-4096}"
 SPLITS="${SPLITS:-16}"
 BUDGET="${BUDGET:-10}"
 MAX_SPP="${MAX_SPP:-65536}"
-OUT="${OUT:-$HERE}"          # where results.csv, bench.csv, bench.svg and table.md go
+# Where results.csv, bench.csv, bench.svg and table.md go: this folder for the Cornell box,
+# bench/mitsuba/<scene stem>/ for another scene.
+if [ "$SCENE" = data/cornell-box/cornell_box.toml ]; then OUT="${OUT:-$HERE}"
+else OUT="${OUT:-$HERE/$(basename "$SCENE" .toml)}"; fi
 
-# Python environment with Mitsuba 3 and numpy.
-if [ ! -x "$VENV/bin/python" ]; then
-    echo "== creating $VENV"
-    python3 -m venv "$VENV"
-fi
-if ! "$VENV/bin/python" -c 'import mitsuba, numpy' 2>/dev/null; then
-    echo "== pip install mitsuba numpy"
-    "$VENV/bin/pip" install --quiet --upgrade pip
-    "$VENV/bin/pip" install --quiet mitsuba numpy
-fi
+source "$HERE/env.sh"   # venv with Mitsuba and numpy, LLVM 19, ember (release)
 
-# Mitsuba's llvm_ad_* variants JIT-compile through LLVM, which the wheel does not ship.
-find_llvm() { find /usr/lib /usr/local/lib -name 'libLLVM*.so*' 2>/dev/null | sort -V | tail -n 1; }
-if [ -z "${DRJIT_LIBLLVM_PATH:-}" ]; then
-    if [ -z "$(find /usr/lib -name 'libLLVM-19*.so*' 2>/dev/null | head -n 1)" ]; then
-        echo "== apt-get install libllvm19"
-        if [ "$(id -u)" = 0 ]; then sudo=""; else sudo="sudo"; fi
-        $sudo apt-get update -qq
-        DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libllvm19 >/dev/null
-    fi
-    DRJIT_LIBLLVM_PATH="$(find /usr/lib -name 'libLLVM-19*.so*' 2>/dev/null | sort | head -n 1)"
-    [ -n "$DRJIT_LIBLLVM_PATH" ] || DRJIT_LIBLLVM_PATH="$(find_llvm)"
-    export DRJIT_LIBLLVM_PATH
-fi
-echo "== DRJIT_LIBLLVM_PATH=$DRJIT_LIBLLVM_PATH"
-
-# ember, optimised.
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/ember-target}"
-echo "== cargo build --release -p ember-cli"
-(cd "$ROOT" && cargo build --release --quiet -p ember-cli --bin ember)
-EMBER="$CARGO_TARGET_DIR/release/ember"
-
+case "$SCENE" in /*) SCENE_PATH="$SCENE" ;; *) SCENE_PATH="$ROOT/$SCENE" ;; esac
 exec "$VENV/bin/python" "$HERE/mitsuba_bench.py" --ember "$EMBER" \
-    --scene "$ROOT/data/cornell-box/cornell_box.toml" --size "$SIZE" --threads "$THREADS" \
+    --scene "$SCENE_PATH" --width "$WIDTH" --height "$HEIGHT" --threads "$THREADS" \
     --ref-spp "$REF_SPP" --mitsuba-ref-spp "$MITSUBA_REF_SPP" --splits "$SPLITS" \
     --budget "$BUDGET" --max-spp "$MAX_SPP" --out "$OUT"
