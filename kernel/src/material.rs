@@ -41,6 +41,16 @@ impl Reflectance {
         self.texture != NO_TEXTURE
     }
 
+    /// The reflectance at texture coordinates `uv` (computed only if textured).
+    #[inline(always)]
+    fn at<F: FnOnce() -> Vec2>(&self, textures: &Textures<'_>, uv: &mut Lazy<F>) -> Rgb {
+        if self.is_textured() {
+            textures.lookup(self.texture, uv.get())
+        } else {
+            self.value
+        }
+    }
+
     /// Per-channel maximum and average over the surface: the constant itself, or
     /// [`texel_stats`] of the texture's texels; `None` for a texture that `textures` does not
     /// hold ([`Textures::texels_of`]).
@@ -190,23 +200,19 @@ impl Material {
     }
 
     /// The BSDF at a surface point; `uv` (the point's texture coordinates) is called only for
-    /// a textured material, once.
-    #[inline]
+    /// a textured material, once. Always inlined: a call per path vertex was 1% of a Cornell
+    /// box render (callgrind), and the path loop is too large for the inliner to take it.
+    #[inline(always)]
     #[must_use]
     pub fn bsdf(&self, textures: &Textures<'_>, uv: impl FnOnce() -> Vec2) -> Bsdf {
         let mut uv = Lazy::new(uv);
-        let mut at = |r: Reflectance| {
-            if r.is_textured() {
-                textures.lookup(r.texture, uv.get())
-            } else {
-                r.value
-            }
-        };
         match self.surface {
-            Surface::Diffuse { kd } => Bsdf::Diffuse(Diffuse::new(at(kd))),
-            Surface::Phong(p) => Bsdf::Phong(p.at(&mut at)),
-            Surface::Mixture(p) => Bsdf::Mixture(p.at(&mut at)),
-            Surface::Conductor { ks, alpha } => Bsdf::Conductor(Conductor::new(at(ks), alpha)),
+            Surface::Diffuse { kd } => Bsdf::Diffuse(Diffuse::new(kd.at(textures, &mut uv))),
+            Surface::Phong(p) => Bsdf::Phong(p.at(textures, &mut uv)),
+            Surface::Mixture(p) => Bsdf::Mixture(p.at(textures, &mut uv)),
+            Surface::Conductor { ks, alpha } => {
+                Bsdf::Conductor(Conductor::new(ks.at(textures, &mut uv), alpha))
+            }
             Surface::Dielectric { eta, tf, alpha } => {
                 Bsdf::Dielectric(Dielectric::new(eta, tf, alpha))
             }
@@ -273,11 +279,11 @@ impl PhongParams {
         }
     }
 
-    #[inline]
-    fn at(&self, reflectance: &mut impl FnMut(Reflectance) -> Rgb) -> Phong {
+    #[inline(always)]
+    fn at<F: FnOnce() -> Vec2>(&self, textures: &Textures<'_>, uv: &mut Lazy<F>) -> Phong {
         Phong::with_weights(
-            reflectance(self.kd),
-            reflectance(self.ks),
+            self.kd.at(textures, uv),
+            self.ks.at(textures, uv),
             self.exponent,
             self.scale,
             self.specular_weight,

@@ -155,7 +155,8 @@ impl Bsdf {
     }
 
     /// Samples `wi` for `wo`: `uc` in `[0, 1)` chooses the lobe, `u` in `[0, 1)²` the direction.
-    #[inline]
+    /// (Always inlined into the path loops, where the inliner left it out.)
+    #[inline(always)]
     #[must_use]
     pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
         let s = match self {

@@ -192,8 +192,9 @@ impl BsdfView<'_> {
         self.surface.bsdf.pdf(self.wo_l, wi_l, mode)
     }
 
-    /// Samples the direction of the next vertex ([`Bsdf::sample`]).
-    #[inline]
+    /// Samples the direction of the next vertex ([`Bsdf::sample`]). Always inlined, so that
+    /// the transport mode, a constant at every call, folds away.
+    #[inline(always)]
     #[must_use]
     pub fn sample(&self, uc: f32, u: Vec2, mode: TransportMode) -> Option<Scatter> {
         let s = self.surface.bsdf.sample(self.wo_l, uc, u, mode)?;
@@ -204,8 +205,10 @@ impl BsdfView<'_> {
         }
         let f = s.f * self.correction(mode, wi_ng, s.wi);
         let weight = f * (s.wi.z.abs() / s.pdf.0);
-        // The correction or the cosine over the pdf can still overflow or vanish.
-        if !crate::math::is_finite(weight) || weight == Rgb::ZERO {
+        // The cosine over the pdf can still overflow, and in importance transport the
+        // correction vanish (`Bsdf::sample` has refused zero and non-finite f and pdf).
+        let vanished = mode == TransportMode::Importance && weight == Rgb::ZERO;
+        if !crate::math::is_finite(weight) || vanished {
             return None;
         }
         Some(Scatter {
