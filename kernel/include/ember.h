@@ -66,9 +66,10 @@
 // or baking call uses about 80 KiB of it, whatever the integrator (mostly the material table
 // of `EMBER_MAX_MATERIALS` entries, 60 KiB; BDPT's subpaths are in the caller's scratch, not
 // on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
-// exactly this size and fails if a call overwrites more than half of one. Default thread
-// stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are enough; raise smaller ones
-// (musl's 128 KiB, job systems) with `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
+// exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack
+// overflows). Default thread stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are
+// enough; raise smaller ones (musl's 128 KiB, job systems) with
+// `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
 #define EMBER_STACK_BYTES 262144
 
 // A texture id meaning "no texture: use the constant" ([`EmberMaterial::kd_texture`],

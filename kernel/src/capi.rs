@@ -53,7 +53,7 @@
 //! it. BDPT adds nothing: its two subpaths (24 KiB) live in a scratch the caller provides
 //! ([`ember_render_scratch_size`]), so a BDPT call needs the same stack as a path tracer's, and
 //! a thread can keep its scratch from call to call. The test fails if a call uses more than
-//! half of `EMBER_STACK_BYTES`. Main threads (8 MiB on Linux) and the default secondary
+//! half of `EMBER_STACK_BYTES`; with 64 KiB stacks (over a guard page) it crashes. Main threads (8 MiB on Linux) and the default secondary
 //! threads of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) have enough; musl's default
 //! (128 KiB) and smaller embedded or job-system stacks must be raised, e.g. with
 //! `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
@@ -207,9 +207,10 @@ pub const EMBER_MAX_MATERIALS: u32 = 1024;
 /// or baking call uses about 80 KiB of it, whatever the integrator (mostly the material table
 /// of `EMBER_MAX_MATERIALS` entries, 60 KiB; BDPT's subpaths are in the caller's scratch, not
 /// on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
-/// exactly this size and fails if a call overwrites more than half of one. Default thread
-/// stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are enough; raise smaller ones
-/// (musl's 128 KiB, job systems) with `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
+/// exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack
+/// overflows). Default thread stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are
+/// enough; raise smaller ones (musl's 128 KiB, job systems) with
+/// `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
 pub const EMBER_STACK_BYTES: u32 = 262_144;
 
 /// A texture id meaning "no texture: use the constant" ([`EmberMaterial::kd_texture`],

@@ -14,9 +14,9 @@
  * tests/tests/capi.rs compares bit for bit with the Rust API's.
  *
  * The rendering threads run on stacks of exactly EMBER_STACK_BYTES that this program
- * allocates and fills with a pattern (pthread_attr_setstack); after each join it measures how
- * deep the pattern was overwritten and fails if a thread used more than half of it (the
- * header's margin). It prints the deepest use as `stack <bytes>` (on stderr).
+ * allocates above a guard page and fills with a pattern (pthread_attr_setstack); after each
+ * join it measures how deep the pattern was overwritten and fails if a thread used more than
+ * half of it (the header's margin). It prints the deepest use as `stack <bytes>` (on stderr).
  *
  *   cc -std=c11 -O2 -pthread -I kernel/include tests/capi/cornell.c libember_capi.a \
  *      -lpthread -ldl -lm -o cornell && ./cornell [OUT.bin]
@@ -30,6 +30,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #define WIDTH 32
 #define HEIGHT 32
@@ -254,6 +256,8 @@ static void *render_rows(void *arg) {
 #define PAINT 0xA5
 #define NTHREADS 2
 static unsigned char *stacks[NTHREADS];
+static unsigned char *stack_blocks[NTHREADS]; /* a guard page, then the stack */
+static size_t page;
 static size_t stack_peak; /* the most any rendering thread used */
 
 /* Bytes of `stack` (EMBER_STACK_BYTES, growing down) that a thread overwrote. */
@@ -388,8 +392,13 @@ int main(int argc, char **argv) {
     CHECK(ember_scene_check(&scene));
 
     for (int t = 0; t < NTHREADS; t++) {
-        stacks[t] = aligned_alloc(4096, EMBER_STACK_BYTES);
-        if (!stacks[t]) return 1;
+        /* Below each stack a page that faults when touched: a thread that outgrows its stack
+         * crashes instead of writing over other memory. */
+        long ps = sysconf(_SC_PAGESIZE);
+        page = ps > 0 ? (size_t)ps : 4096;
+        stack_blocks[t] = aligned_alloc(page, page + EMBER_STACK_BYTES);
+        if (!stack_blocks[t] || mprotect(stack_blocks[t], page, PROT_NONE) != 0) return 1;
+        stacks[t] = stack_blocks[t] + page;
     }
 
     /* Three renders, each by two threads. */
@@ -647,7 +656,8 @@ int main(int argc, char **argv) {
     for (int t = 0; t < NTHREADS; t++) {
         free(thread_splats[t]);
         free(scratches[t]);
-        free(stacks[t]);
+        mprotect(stack_blocks[t], page, PROT_READ | PROT_WRITE);
+        free(stack_blocks[t]);
     }
     return 0;
 }
