@@ -1402,10 +1402,10 @@ fn disjoint(a: (usize, usize), b: (usize, usize)) -> bool {
 /// one else may access that memory during `'a`.
 unsafe fn init_scratch<'a>(ptr: *mut BdptScratch) -> &'a mut BdptScratch {
     // SAFETY: the caller guarantees the memory; `addr_of_mut!` projects to the fields without
-    // creating references to the uninitialised struct, each field is an array of `Vertex`, so
-    // its elements are at `cast::<Vertex>().add(i)` for `i` below its length, and after both
-    // arrays are written every field of the struct is initialised (arrays of an aligned
-    // element type need no padding between them that would matter: padding is never read).
+    // creating references to the uninitialised struct; each field is an array of `Vertex`, so
+    // its elements are at `cast::<Vertex>().add(i)` for `i` below its length; after both
+    // arrays are written every field is initialised (padding bytes, if any, need not be), so
+    // the memory holds a valid `BdptScratch`.
     unsafe {
         let camera = core::ptr::addr_of_mut!((*ptr).camera).cast::<Vertex>();
         for i in 0..CAMERA_PATH_VERTICES {
