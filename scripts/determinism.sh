@@ -1,14 +1,17 @@
 #!/usr/bin/env bash
 # Renders ember's determinism scene (tests/determinism: a Cornell box in arrays, every BSDF,
-# every path integrator, a bake) in every build configuration and on every target, prints a
-# table of the hashes of the pixel bits, and exits non-zero unless all of them equal the golden
-# hashes in tests/golden/determinism.txt:
+# every path integrator, the light tracer and BDPT with their splats, a bake) in every build
+# configuration and on every target, prints a table of the hashes of the pixel bits (render:
+# path tracers, bake, splat: light tracer and BDPT), and exits non-zero unless all of them equal
+# the golden hashes in tests/golden/determinism.txt:
 #
 #   host debug (kernel at opt-level 3, as the dev profile has it, and at opt-level 0),
-#   host release with 1, 2 and 7 threads, -C target-cpu=x86-64 and -C target-cpu=x86-64-v3
+#   host release with 1, 2 and 7 threads taking rows and with 7 threads taking 5x5 tiles (each
+#   thread with its own splat buffer), -C target-cpu=x86-64 and -C target-cpu=x86-64-v3
 #   (AVX2 and FMA), aarch64-unknown-linux-gnu under qemu-user, wasm32-unknown-unknown under
 #   Node.js, x86_64-unknown-none (no std, no alloc, soft float; linked into a C program), and
-#   the C API (libember_capi.a + tests/capi/cornell.c rendering from two pthreads).
+#   the C API (libember_capi.a + tests/capi/cornell.c rendering from two pthreads, a splat
+#   buffer each, merged with ember_splat_merge).
 #
 # Installs what it needs when it is missing: the rustup targets, Debian's gcc-aarch64-linux-gnu
 # and qemu-user-static, a C compiler and Node.js. Builds that need their own RUSTFLAGS or
@@ -54,15 +57,18 @@ done
 names=()
 renders=()
 bakes=()
+splats=()
 
-# record NAME OUTPUT: keeps the `render` and `bake` hashes a configuration printed.
+# record NAME OUTPUT: keeps the `render`, `bake` and `splat` hashes a configuration printed.
 record() {
-    local r b
+    local r b s
     r=$(awk '$1 == "render" { print $2 }' <<<"$2")
     b=$(awk '$1 == "bake" { print $2 }' <<<"$2")
+    s=$(awk '$1 == "splat" { print $2 }' <<<"$2")
     names+=("$1")
     renders+=("${r:-missing}")
     bakes+=("${b:-missing}")
+    splats+=("${s:-missing}")
 }
 
 det=(-p ember-determinism --bin ember-determinism --quiet)
@@ -81,6 +87,8 @@ cargo build "${det[@]}" --release
 for n in 1 2 7; do
     record "host release, $n thread(s)" "$("$target/release/ember-determinism" --threads "$n")"
 done
+record "host release, 7 threads, 5x5 tiles" \
+    "$("$target/release/ember-determinism" --threads 7 --tile 5)"
 
 for cpu in x86-64 x86-64-v3; do
     say "host release, -C target-cpu=$cpu"
@@ -110,6 +118,7 @@ const wasm = new WebAssembly.Instance(new WebAssembly.Module(fs.readFileSync(pro
 const hex = (v) => BigInt.asUintN(64, v).toString(16).padStart(16, "0");
 console.log("render " + hex(wasm.exports.ember_render_hash()));
 console.log("bake " + hex(wasm.exports.ember_bake_hash()));
+console.log("splat " + hex(wasm.exports.ember_splat_hash()));
 ' "$target/wasm32-unknown-unknown/release/ember_determinism_wasm.wasm")"
 
 say "x86_64-unknown-none (no std, no alloc)"
@@ -119,9 +128,12 @@ cat >"$work/nostd.c" <<'EOF'
 #include <stdio.h>
 uint64_t ember_nostd_render_hash(void);
 uint64_t ember_nostd_bake_hash(void);
+uint64_t ember_nostd_splat_hash(void);
 int main(void) {
-    printf("render %016llx\nbake %016llx\n", (unsigned long long)ember_nostd_render_hash(),
-           (unsigned long long)ember_nostd_bake_hash());
+    printf("render %016llx\nbake %016llx\nsplat %016llx\n",
+           (unsigned long long)ember_nostd_render_hash(),
+           (unsigned long long)ember_nostd_bake_hash(),
+           (unsigned long long)ember_nostd_splat_hash());
     return 0;
 }
 EOF
@@ -137,23 +149,26 @@ record "C API release (cc, 2 pthreads, 8x8 tiles)" "$("$work/cornell")"
 # --- the table -------------------------------------------------------------------------------
 golden_render=$(awk '$1 == "render" { print $2 }' tests/golden/determinism.txt)
 golden_bake=$(awk '$1 == "bake" { print $2 }' tests/golden/determinism.txt)
+golden_splat=$(awk '$1 == "splat" { print $2 }' tests/golden/determinism.txt)
 status=0
 echo
-printf '%-52s  %-16s  %-16s  %s\n' "configuration" "render" "bake" ""
-printf '%-52s  %-16s  %-16s  %s\n' "golden (tests/golden/determinism.txt)" \
-    "$golden_render" "$golden_bake" ""
+row() { printf '%-52s  %-16s  %-16s  %-16s  %s\n' "$@"; }
+row "configuration" "render" "bake" "splat" ""
+row "golden (tests/golden/determinism.txt)" "$golden_render" "$golden_bake" "$golden_splat" ""
 for i in "${!names[@]}"; do
     mark="ok"
-    if [ "${renders[$i]}" != "$golden_render" ] || [ "${bakes[$i]}" != "$golden_bake" ]; then
+    if [ "${renders[$i]}" != "$golden_render" ] || [ "${bakes[$i]}" != "$golden_bake" ] ||
+        [ "${splats[$i]}" != "$golden_splat" ]; then
         mark="MISMATCH"
         status=1
     fi
-    printf '%-52s  %-16s  %-16s  %s\n' "${names[$i]}" "${renders[$i]}" "${bakes[$i]}" "$mark"
+    row "${names[$i]}" "${renders[$i]}" "${bakes[$i]}" "${splats[$i]}" "$mark"
 done
 echo
 agree=1
 for i in "${!names[@]}"; do
-    if [ "${renders[$i]}" != "${renders[0]}" ] || [ "${bakes[$i]}" != "${bakes[0]}" ]; then
+    if [ "${renders[$i]}" != "${renders[0]}" ] || [ "${bakes[$i]}" != "${bakes[0]}" ] ||
+        [ "${splats[$i]}" != "${splats[0]}" ]; then
         agree=0
     fi
 done

@@ -12,6 +12,11 @@
  * other call, and set the first field of every struct you fill, struct_size, to its sizeof
  * (EmberMaterial, EmberScene, EmberCamera, EmberSettings, EmberBakePoint); a call handed a
  * struct of another size returns EMBER_ERROR_ABI and reads nothing else of it.
+ *
+ * Threads that call ember need EMBER_STACK_BYTES of stack. The light tracer and BDPT render
+ * through ember_render_tile_splats into a caller-owned fixed-point splat buffer per thread
+ * (ember_splat_buffer_size; BDPT also needs ember_render_scratch_size bytes of scratch),
+ * merged with ember_splat_merge and turned into the image by ember_splat_resolve.
  */
 
 #ifndef EMBER_H
@@ -23,8 +28,9 @@
 // The version of the C API this header describes. Compare it with [`ember_abi_version`] at
 // start-up: they differ when the program was compiled against another ember.h than the
 // library it runs with. Version 2 added `struct_size` as the first field of every struct the
-// caller fills, conductor and dielectric materials, and textures.
-#define EMBER_ABI_VERSION 2
+// caller fills, conductor and dielectric materials, and textures; version 3 the light tracer,
+// BDPT and their splat buffers (`ember_render_tile_splats`; no struct changed).
+#define EMBER_ABI_VERSION 3
 
 // Success.
 #define EMBER_OK 0
@@ -42,7 +48,8 @@
 // texture, a texture whose texels lie outside the texel array, a bad texel.
 #define EMBER_ERROR_INVALID_SCENE 3
 
-// A camera, settings, tile or bake point value is out of range.
+// A camera, settings, tile or bake point value is out of range, an integrator the call does
+// not render, or output arrays that overlap each other (or an input the call checks).
 #define EMBER_ERROR_INVALID_ARGUMENT 4
 
 // More than [`EMBER_MAX_MATERIALS`] materials.
@@ -54,6 +61,16 @@
 
 // Most materials a scene may have in the rendering calls.
 #define EMBER_MAX_MATERIALS 1024
+
+// The stack, in bytes, a thread must have to call ember's functions: 256 KiB. Each rendering
+// or baking call uses about 80 KiB of it, whatever the integrator (mostly the material table
+// of `EMBER_MAX_MATERIALS` entries, 60 KiB; BDPT's subpaths are in the caller's scratch, not
+// on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
+// exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack
+// overflows). Default thread stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are
+// enough; raise smaller ones (musl's 128 KiB, job systems) with
+// `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
+#define EMBER_STACK_BYTES 262144
 
 // A texture id meaning "no texture: use the constant" ([`EmberMaterial::kd_texture`],
 // [`EmberMaterial::ks_texture`]).
@@ -86,6 +103,26 @@
 
 // [`EmberSettings::integrator`]: path tracing with MIS of emitter and BSDF sampling.
 #define EMBER_INTEGRATOR_PATH_MIS 2
+
+// [`EmberSettings::integrator`]: light tracing. Each pixel sample traces one path from the
+// emitters and connects every vertex to the camera; all of its light lands as splats, anywhere
+// on the film, so it renders only through `ember_render_tile_splats` (its own-sample sums are
+// 0).
+#define EMBER_INTEGRATOR_LIGHT_TRACING 3
+
+// [`EmberSettings::integrator`]: bidirectional path tracing with every connection strategy,
+// combined by MIS with the power heuristic (Veach's recommendation). The strategies that
+// connect to the camera (`t = 1`) are splats: renders only through `ember_render_tile_splats`,
+// with a scratch of `ember_render_scratch_size` bytes. Bounded `max_depth` at most
+// `EMBER_BDPT_MAX_DEPTH`; -1 is truncated there.
+#define EMBER_INTEGRATOR_BDPT 4
+
+// [`EmberSettings::integrator`]: `EMBER_INTEGRATOR_BDPT` with the balance heuristic
+// (pbrt-v4's choice) instead of the power heuristic.
+#define EMBER_INTEGRATOR_BDPT_BALANCE 5
+
+// The deepest bounded `max_depth` BDPT renders (its subpaths live in a fixed-size scratch).
+#define EMBER_BDPT_MAX_DEPTH 64
 
 // [`EmberSettings::bake_estimator`]: MIS path tracing from each point (the default).
 #define EMBER_BAKE_MIS 0
@@ -311,6 +348,11 @@ int32_t ember_scene_check(const struct EmberScene *scene);
 // within the tile. A pixel's value does not depend on the tile it was rendered in; samples that
 // come out NaN or infinite count as black. Writes nothing unless it returns `EMBER_OK`.
 //
+// Path tracers only: the light tracer and BDPT put light on other pixels than their samples'
+// and render through `ember_render_tile_splats`; here they get `EMBER_ERROR_INVALID_ARGUMENT`.
+// This call's pixel equals `ember_splat_resolve` of that call's own-sample sum with no splats,
+// bit for bit.
+//
 // # Safety
 // `scene`, `camera` and `settings` must point to valid structs, the scene's arrays valid for
 // their counts; `out_rgb` must be writable for `3·w·h` floats and overlap no input.
@@ -322,6 +364,115 @@ int32_t ember_render_tile(const struct EmberScene *scene,
                           uint32_t w,
                           uint32_t h,
                           float *out_rgb);
+
+// Renders the pixels `x0 .. x0 + w` × `y0 .. y0 + h` of the camera's film with any integrator,
+// splatting ones included: writes each pixel's **sum** over its `settings->spp` own samples
+// (linear RGB, not divided by `spp`; 0 for the light tracer) to `out_sum_rgb` (`3·w·h` floats,
+// row-major within the tile), and **adds** the light its samples put on any pixel of the film
+// (the light tracer's connections to the camera, BDPT's `t = 1` strategies) to the caller's
+// splat buffer `splats`: `splat_count` fixed-point sums, one `int64_t[3]` per pixel of the
+// whole film, row-major, 32 fraction bits (`ember_splat_buffer_size`; the caller zeroes it
+// before the first call). `ember_splat_resolve` then turns the sums of the whole image and
+// the splat buffer into the image.
+//
+// - **Tiles and threads.** Sample `i` of pixel `(x, y)` is the same whatever tile renders it:
+//   for the light tracer it traces one light path, keyed by the pixel and `i`, so calls for
+//   disjoint tiles that cover the film trace each of the image's `W·H·spp` light paths once
+//   (BDPT: one camera and one light subpath per pixel sample). Splats are integers added
+//   exactly: concurrent calls need **separate splat buffers** (a call adds to its buffer
+//   without synchronisation), which the caller sums with `ember_splat_merge` in any order;
+//   the merged buffer, and so the image, is bit-identical whatever the tiles, threads and
+//   order. Calls in sequence may share one buffer.
+// - **Scratch.** BDPT keeps its two subpaths in `scratch`: at least `ember_render_scratch_size`
+//   bytes, aligned as that call says, one per concurrent call (the call overwrites it; its
+//   contents before and after do not matter). Other integrators ignore `scratch` and
+//   `scratch_bytes`.
+// - **Path tracers** render here too: `splats` may then be null with `splat_count` 0 (a
+//   given buffer is checked and left unchanged), and `ember_splat_resolve` of the sums gives
+//   `ember_render_tile`'s pixels bit for bit.
+//
+// Errors: `EMBER_ERROR_NULL_POINTER` for a null `splats` with a splatting integrator (or with
+// `splat_count` > 0) and a null `scratch` with BDPT; `EMBER_ERROR_SIZE` when `splat_count` is
+// not `camera->width · camera->height` (for a non-null buffer), `scratch_bytes` is too small,
+// or an array is misaligned; `EMBER_ERROR_INVALID_ARGUMENT` as for `ember_render_tile`, for a
+// BDPT `max_depth` above `EMBER_BDPT_MAX_DEPTH`, and when two of `out_sum_rgb`, `splats` and
+// `scratch` overlap. Splat values that are NaN, infinite or of magnitude 2^31 or more are
+// dropped (like non-finite samples, which count as black), and the splat sums saturate.
+// Writes nothing (not the sums, the splats or the scratch) unless it returns `EMBER_OK`.
+//
+// # Safety
+// As for [`ember_render_tile`]; `out_sum_rgb` writable for `3·w·h` floats; `splats` null or
+// readable and writable for `splat_count` entries; `scratch` null or writable for
+// `scratch_bytes` bytes; none of them overlapping an input or being accessed by another thread
+// during the call.
+int32_t ember_render_tile_splats(const struct EmberScene *scene,
+                                 const struct EmberCamera *camera,
+                                 const struct EmberSettings *settings,
+                                 uint32_t x0,
+                                 uint32_t y0,
+                                 uint32_t w,
+                                 uint32_t h,
+                                 float *out_sum_rgb,
+                                 int64_t (*splats)[3],
+                                 size_t splat_count,
+                                 void *scratch,
+                                 size_t scratch_bytes);
+
+// The splat buffer of a `width × height` film: `*out_count` entries of `int64_t[3]` (one per
+// pixel, row-major; `width · height`), `*out_bytes` bytes (`24 · width · height`). Either out
+// pointer may be null. `EMBER_ERROR_INVALID_ARGUMENT` for a zero width or height,
+// `EMBER_ERROR_SIZE` when the buffer would not fit in memory (`size_t`, `PTRDIFF_MAX`).
+//
+// # Safety
+// Each out pointer must be null or valid for writing a `size_t`.
+int32_t ember_splat_buffer_size(uint32_t width,
+                                uint32_t height,
+                                size_t *out_count,
+                                size_t *out_bytes);
+
+// The scratch `ember_render_tile_splats` needs for `integrator` (an `EMBER_INTEGRATOR_*`):
+// `*out_bytes` bytes aligned to `*out_align` (a power of two; `malloc` memory is always
+// aligned enough). BDPT needs one (its two subpaths, about 24 KiB); the other integrators none
+// (0 bytes, alignment 1). Either out pointer may be null; `EMBER_ERROR_INVALID_ARGUMENT` for
+// an unknown integrator.
+//
+// # Safety
+// Each out pointer must be null or valid for writing a `size_t`.
+int32_t ember_render_scratch_size(uint32_t integrator,
+                                  size_t *out_bytes,
+                                  size_t *out_align);
+
+// Adds the splat buffer `src` to `dst`, entry by entry (`count` entries of `int64_t[3]`,
+// saturating): how the buffers of concurrent `ember_render_tile_splats` calls are combined.
+// Splats are non-negative integers, so merging in any order, in any grouping, gives the same
+// sums. `EMBER_ERROR_INVALID_ARGUMENT` when the two overlap (`dst == src` included).
+//
+// # Safety
+// `dst` must be readable and writable and `src` readable for `count` entries.
+int32_t ember_splat_merge(int64_t (*dst)[3],
+                          const int64_t (*src)[3],
+                          size_t count);
+
+// The image of a splatting render: for each of the `count` pixels, `(sum + splat) / spp` per
+// channel, from the own-sample sums `sum_rgb` (`3·count` floats, as `ember_render_tile_splats`
+// writes them, assembled for the whole film) and the merged splat buffer `splats` (`count`
+// entries), into `out_rgb` (`3·count` floats; it may be `sum_rgb` itself, resolving in place,
+// but must not overlap it otherwise, nor `splats`). `spp` is the `settings->spp` of the
+// render, at least 1 (`EMBER_ERROR_INVALID_ARGUMENT` otherwise, and for overlapping arrays).
+//
+// The arithmetic, which Rust hosts share (the kernel's `splat::resolve`) so that images agree
+// bit for bit: per channel, in IEEE double precision rounded to nearest,
+// `(float)(((double)sum + (double)splat / 4294967296.0) / (double)spp)`. Without splats this
+// equals the float mean `sum / (float)spp` exactly, i.e. `ember_render_tile`'s pixel.
+//
+// # Safety
+// `sum_rgb` and `splats` must be readable for their sizes, `out_rgb` writable for `3·count`
+// floats.
+int32_t ember_splat_resolve(const float *sum_rgb,
+                            const int64_t (*splats)[3],
+                            size_t count,
+                            uint32_t spp,
+                            float *out_rgb);
 
 // Bakes the view-independent radiance at each of the `n` points into `out_rgb`, `3·n` floats:
 // the emission plus the cosine-weighted average over view directions of the light the full

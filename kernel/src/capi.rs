@@ -15,6 +15,12 @@
 //!    [`ember_render_tile`] renders any rectangle of the image and [`ember_bake_vertices`] bakes
 //!    the view-independent radiance at a list of surface points, into the engine's output
 //!    arrays.
+//! 5. The light tracer and BDPT put light on arbitrary pixels ("splats"):
+//!    [`ember_render_tile_splats`] renders a tile's own-sample sums and adds its splats to a
+//!    fixed-point splat buffer of the whole film ([`ember_splat_buffer_size`]; BDPT also needs
+//!    a scratch, [`ember_render_scratch_size`]); the buffers of concurrent calls are summed with
+//!    [`ember_splat_merge`] and [`ember_splat_resolve`] makes the image. See "Splatting
+//!    integrators" below.
 //!
 //! Rules: no global state, no allocation, nothing is retained after a call returns. Every
 //! function is thread-safe: calls may run concurrently on shared inputs as long as their output
@@ -28,6 +34,8 @@
 //! validate the whole scene each time, texels included, which costs time linear in its size;
 //! render tiles of a few thousand pixels or more.
 //!
+//! # Stack
+//!
 //! Materials are converted on the stack at each rendering call, so a scene may have at most
 //! [`EMBER_MAX_MATERIALS`] materials (a table of 60 bytes per entry, 60 KiB, on the stack of
 //! each rendering call). A textured Phong or mixture material needs the per-channel maximum
@@ -37,9 +45,50 @@
 //! further 7 KiB of stack while the materials are converted), and once per material for
 //! textures beyond those.
 //!
+//! A thread that calls ember needs [`EMBER_STACK_BYTES`] (256 KiB) of stack. Measured: every
+//! rendering call, whatever the integrator, overwrites 83,848 bytes of a painted 256 KiB
+//! pthread stack (`tests/capi/cornell.c` runs its rendering threads on such stacks, x86_64
+//! Linux, release build, glibc; an idle thread overwrites 4,464 of them): about 80 KiB, the
+//! material table and the texel statistics while the materials are converted being most of
+//! it. BDPT adds nothing: its two subpaths (24 KiB) live in a scratch the caller provides
+//! ([`ember_render_scratch_size`]), so a BDPT call needs the same stack as a path tracer's, and
+//! a thread can keep its scratch from call to call. The test fails if a call uses more than
+//! half of `EMBER_STACK_BYTES`; with 64 KiB stacks (over a guard page) it crashes. Main threads (8 MiB on Linux) and the default secondary
+//! threads of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) have enough; musl's default
+//! (128 KiB) and smaller embedded or job-system stacks must be raised, e.g. with
+//! `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
+//!
+//! # Splatting integrators
+//!
+//! Path tracers give each pixel its own samples' light. The light tracer
+//! (`EMBER_INTEGRATOR_LIGHT_TRACING`) traces one path from the emitters per pixel sample and
+//! connects each of its vertices to the camera, landing on whatever pixel it projects to; BDPT
+//! (`EMBER_INTEGRATOR_BDPT`, power heuristic, or `EMBER_INTEGRATOR_BDPT_BALANCE`) does the
+//! same for its `t = 1` strategies and keeps the others in its own pixel. A frame with them:
+//!
+//! ```c
+//! size_t count, bytes, scratch_bytes, align;
+//! ember_splat_buffer_size(camera.width, camera.height, &count, &bytes);
+//! ember_render_scratch_size(settings.integrator, &scratch_bytes, &align);
+//! // per thread: a zeroed splat buffer and a scratch (malloc memory is aligned enough)
+//! int64_t (*splats)[3] = calloc(count, sizeof *splats);
+//! void *scratch = malloc(scratch_bytes);
+//! // each thread renders its tiles (sums into its part of a whole-film float image `sums`)
+//! ember_render_tile_splats(&scene, &camera, &settings, x0, y0, w, h, tile_sums,
+//!                          splats, count, scratch, scratch_bytes);
+//! // then, after the threads are joined, in any order:
+//! ember_splat_merge(splats_of_thread_0, splats_of_thread_1, count);
+//! ember_splat_resolve(sums, splats_of_thread_0, count, settings.spp, image);
+//! ```
+//!
+//! Splats are fixed-point integers (32 fraction bits) added exactly, so the merged buffer, and
+//! the image, do not depend on the tiles, threads or merge order. The image is `(sum + splat) /
+//! spp` per channel computed as [`ember_splat_resolve`] documents, the arithmetic the Rust
+//! hosts use.
+//!
 //! # ABI version
 //!
-//! This is version 2 ([`EMBER_ABI_VERSION`]) of the C API. Callers check at start-up that the
+//! This is version 3 ([`EMBER_ABI_VERSION`]) of the C API. Callers check at start-up that the
 //! library they linked implements the header they compiled with,
 //!
 //! ```c
@@ -50,11 +99,20 @@
 //! as their header declares it (`m.struct_size = sizeof(EmberMaterial);`). Every call checks
 //! the `struct_size` of each struct it is handed (of an array: the first record's before
 //! anything else of the array is read, then every record's) and returns [`EMBER_ERROR_ABI`],
-//! reading nothing more, when it is not this library's size. Version 2 accepts exactly its own
+//! reading nothing more, when it is not this library's size. A version accepts exactly its own
 //! sizes; later versions only append fields, so that they can recognise an older caller's
 //! records by their size.
 //!
-//! Which structs carry the field, and why:
+//! Version 3 added the light tracer and BDPT (integrators 3 to 5) and the functions they
+//! render through ([`ember_render_tile_splats`], [`ember_splat_buffer_size`],
+//! [`ember_render_scratch_size`], [`ember_splat_merge`], [`ember_splat_resolve`]). No struct
+//! and no existing signature changed: the splat buffer and the scratch are arguments of the
+//! new entry point, so `ember_render_tile` keeps its version 2 meaning (it refuses the
+//! splatting integrators) and the records of version 2 and 3 are the same, with the same
+//! sizes. The version still changed because a version 3 header declares functions a version 2
+//! library lacks; a version 2 program needs only to be recompiled.
+//!
+//! Which structs carry the field (since version 2), and why:
 //! - [`EmberMaterial`] changed (new kinds, texture ids, IOR, tint, roughness). A version 1
 //!   material began with `kind` (0 to 2), never a valid size: it is refused, not misread.
 //! - [`EmberScene`] gained the texture arrays. A version 1 scene began with its positions
@@ -73,7 +131,7 @@
 //!
 //! A version 1 program recompiled against this header fails to compile where it initialises
 //! structs by position, and gets `EMBER_ERROR_ABI` where it zeroes them and sets fields by
-//! name. Version 1 libraries have no `ember_abi_version`, so a version 2 program does not link
+//! name. Version 1 libraries have no `ember_abi_version`, so a later program does not link
 //! against one.
 //!
 //! # Materials and textures
@@ -101,20 +159,25 @@
 use crate::bvh::{self, Bvh, BvhNode, TRAVERSAL_STACK};
 use crate::camera::Camera;
 use crate::emitter::{build_emitter_table, EmitterTableError};
+use crate::integrator::bdpt::{self, Vertex, CAMERA_PATH_VERTICES, LIGHT_PATH_VERTICES};
 use crate::integrator::{
-    bake_vertex, render_pixel, BakeEstimator, BakePoint, Integrator, PathSettings, PixelStats,
+    bake_vertex, render_pixel, BakeEstimator, BakePoint, BdptScratch, BdptSink, Integrator,
+    MisHeuristic, PathSettings, PixelStats,
 };
 use crate::material::{PhongParams, Reflectance, Surface};
 use crate::scene::{Material, SceneError, SceneView};
+use crate::splat::{self, NoSplats, SplatBuffer};
 use crate::texture::{Texture, Textures, NO_TEXTURE};
 use crate::Rgb;
+use core::ffi::c_void;
 use glam::{Vec2, Vec3};
 
 /// The version of the C API this header describes. Compare it with [`ember_abi_version`] at
 /// start-up: they differ when the program was compiled against another ember.h than the
 /// library it runs with. Version 2 added `struct_size` as the first field of every struct the
-/// caller fills, conductor and dielectric materials, and textures.
-pub const EMBER_ABI_VERSION: u32 = 2;
+/// caller fills, conductor and dielectric materials, and textures; version 3 the light tracer,
+/// BDPT and their splat buffers (`ember_render_tile_splats`; no struct changed).
+pub const EMBER_ABI_VERSION: u32 = 3;
 
 /// Success.
 pub const EMBER_OK: i32 = 0;
@@ -128,7 +191,8 @@ pub const EMBER_ERROR_SIZE: i32 = 2;
 /// BVH that is not a tree over the scene's triangles, a bad material, a texture id without a
 /// texture, a texture whose texels lie outside the texel array, a bad texel.
 pub const EMBER_ERROR_INVALID_SCENE: i32 = 3;
-/// A camera, settings, tile or bake point value is out of range.
+/// A camera, settings, tile or bake point value is out of range, an integrator the call does
+/// not render, or output arrays that overlap each other (or an input the call checks).
 pub const EMBER_ERROR_INVALID_ARGUMENT: i32 = 4;
 /// More than [`EMBER_MAX_MATERIALS`] materials.
 pub const EMBER_ERROR_TOO_MANY_MATERIALS: i32 = 5;
@@ -138,6 +202,16 @@ pub const EMBER_ERROR_ABI: i32 = 6;
 
 /// Most materials a scene may have in the rendering calls.
 pub const EMBER_MAX_MATERIALS: u32 = 1024;
+
+/// The stack, in bytes, a thread must have to call ember's functions: 256 KiB. Each rendering
+/// or baking call uses about 80 KiB of it, whatever the integrator (mostly the material table
+/// of `EMBER_MAX_MATERIALS` entries, 60 KiB; BDPT's subpaths are in the caller's scratch, not
+/// on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
+/// exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack
+/// overflows). Default thread stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are
+/// enough; raise smaller ones (musl's 128 KiB, job systems) with
+/// `pthread_attr_setstacksize(&attr, EMBER_STACK_BYTES)`.
+pub const EMBER_STACK_BYTES: u32 = 262_144;
 
 /// A texture id meaning "no texture: use the constant" ([`EmberMaterial::kd_texture`],
 /// [`EmberMaterial::ks_texture`]).
@@ -165,6 +239,23 @@ pub const EMBER_INTEGRATOR_PATH_IMPLICIT: u32 = 0;
 pub const EMBER_INTEGRATOR_PATH_EXPLICIT: u32 = 1;
 /// [`EmberSettings::integrator`]: path tracing with MIS of emitter and BSDF sampling.
 pub const EMBER_INTEGRATOR_PATH_MIS: u32 = 2;
+/// [`EmberSettings::integrator`]: light tracing. Each pixel sample traces one path from the
+/// emitters and connects every vertex to the camera; all of its light lands as splats, anywhere
+/// on the film, so it renders only through `ember_render_tile_splats` (its own-sample sums are
+/// 0).
+pub const EMBER_INTEGRATOR_LIGHT_TRACING: u32 = 3;
+/// [`EmberSettings::integrator`]: bidirectional path tracing with every connection strategy,
+/// combined by MIS with the power heuristic (Veach's recommendation). The strategies that
+/// connect to the camera (`t = 1`) are splats: renders only through `ember_render_tile_splats`,
+/// with a scratch of `ember_render_scratch_size` bytes. Bounded `max_depth` at most
+/// `EMBER_BDPT_MAX_DEPTH`; -1 is truncated there.
+pub const EMBER_INTEGRATOR_BDPT: u32 = 4;
+/// [`EmberSettings::integrator`]: `EMBER_INTEGRATOR_BDPT` with the balance heuristic
+/// (pbrt-v4's choice) instead of the power heuristic.
+pub const EMBER_INTEGRATOR_BDPT_BALANCE: u32 = 5;
+/// The deepest bounded `max_depth` BDPT renders (its subpaths live in a fixed-size scratch).
+pub const EMBER_BDPT_MAX_DEPTH: i32 = 64;
+const _: () = assert!(EMBER_BDPT_MAX_DEPTH as u32 == bdpt::BDPT_MAX_DEPTH);
 
 /// [`EmberSettings::bake_estimator`]: MIS path tracing from each point (the default).
 pub const EMBER_BAKE_MIS: u32 = 0;
@@ -999,10 +1090,158 @@ pub unsafe extern "C" fn ember_scene_check(scene: *const EmberScene) -> i32 {
     status(unsafe { record(scene).and_then(|s| scene_view(s, &mut table)) }.map(|_| ()))
 }
 
+/// The kernel's integrator for [`EmberSettings::integrator`].
+fn integrator_of(code: u32) -> Result<Integrator, i32> {
+    Ok(match code {
+        EMBER_INTEGRATOR_PATH_IMPLICIT => Integrator::PathImplicit,
+        EMBER_INTEGRATOR_PATH_EXPLICIT => Integrator::PathExplicit,
+        EMBER_INTEGRATOR_PATH_MIS => Integrator::PathMis,
+        EMBER_INTEGRATOR_LIGHT_TRACING => Integrator::LightTracing,
+        EMBER_INTEGRATOR_BDPT => Integrator::Bdpt(MisHeuristic::Power),
+        EMBER_INTEGRATOR_BDPT_BALANCE => Integrator::Bdpt(MisHeuristic::Balance),
+        _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
+    })
+}
+
+/// Bytes and alignment of the scratch `integrator` needs in `ember_render_tile_splats` (0
+/// bytes: none).
+const fn scratch_layout(integrator: Integrator) -> (usize, usize) {
+    match integrator {
+        Integrator::Bdpt(_) => (
+            core::mem::size_of::<BdptScratch>(),
+            core::mem::align_of::<BdptScratch>(),
+        ),
+        _ => (0, 1),
+    }
+}
+
+/// A validated rendering request: the scene, the camera, the settings and the tile.
+struct TileJob<'a> {
+    view: SceneView<'a>,
+    camera: Camera,
+    path: PathSettings,
+    integrator: Integrator,
+    spp: u32,
+    seed: u64,
+    x0: u32,
+    y0: u32,
+    w: u32,
+    h: u32,
+}
+
+impl TileJob<'_> {
+    /// Floats of the tile's RGB output (`3·w·h`).
+    fn floats(&self) -> Result<usize, i32> {
+        (self.w as usize)
+            .checked_mul(self.h as usize)
+            .and_then(|n| n.checked_mul(3))
+            .ok_or(EMBER_ERROR_SIZE)
+    }
+
+    /// Pixels of the whole film (the splat buffer's entries).
+    fn film_pixels(&self) -> usize {
+        self.camera.width as usize * self.camera.height as usize
+    }
+
+    /// Renders the tile into `out` (`3·w·h` floats), each pixel's stats turned into its value
+    /// by `value`; splats go to `sink`.
+    fn render<K: BdptSink>(
+        &self,
+        out: &mut [f32],
+        mut scratch: Option<&mut BdptScratch>,
+        sink: &mut K,
+        value: impl Fn(&PixelStats) -> Rgb,
+    ) {
+        for (i, px) in out.chunks_exact_mut(3).enumerate() {
+            let x = self.x0 + (i % self.w as usize) as u32;
+            let y = self.y0 + (i / self.w as usize) as u32;
+            let stats = render_pixel(
+                self.integrator,
+                &self.view,
+                &self.camera,
+                &self.path,
+                self.seed,
+                x,
+                y,
+                0,
+                self.spp,
+                PixelStats::default(),
+                scratch.as_deref_mut(),
+                sink,
+            );
+            px.copy_from_slice(&value(&stats).to_array());
+        }
+    }
+}
+
+/// Checks the scene, camera, settings and tile of a rendering call.
+///
+/// # Safety
+/// `scene`, `camera` and `settings` as for [`ember_render_tile`].
+unsafe fn tile_job<'a>(
+    scene: *const EmberScene,
+    camera: *const EmberCamera,
+    settings: *const EmberSettings,
+    (x0, y0, w, h): (u32, u32, u32, u32),
+    table: &'a mut [Material; EMBER_MAX_MATERIALS as usize],
+) -> Result<TileJob<'a>, i32> {
+    // SAFETY: the caller's contract (that of `ember_render_tile`).
+    let (view, camera, settings) = unsafe {
+        (
+            scene_view(record(scene)?, table)?,
+            record(camera)?,
+            record(settings)?,
+        )
+    };
+    let path = path_settings(settings)?;
+    let integrator = integrator_of(settings.integrator)?;
+    if matches!(integrator, Integrator::Bdpt(_)) && bdpt::check_depth(path.max_depth).is_err() {
+        return Err(EMBER_ERROR_INVALID_ARGUMENT);
+    }
+    let finite = |v: [f32; 3]| v.iter().all(|c| c.is_finite());
+    let camera_ok = finite(camera.eye)
+        && finite(camera.at)
+        && finite(camera.up)
+        && camera.fov_degrees > 0.0
+        && camera.fov_degrees < 180.0
+        && camera.width > 0
+        && camera.height > 0
+        && camera.eye != camera.at;
+    let tile_ok = x0.checked_add(w).is_some_and(|x1| x1 <= camera.width)
+        && y0.checked_add(h).is_some_and(|y1| y1 <= camera.height);
+    if !camera_ok || !tile_ok {
+        return Err(EMBER_ERROR_INVALID_ARGUMENT);
+    }
+    Ok(TileJob {
+        view,
+        camera: Camera::look_at(
+            Vec3::from_array(camera.eye),
+            Vec3::from_array(camera.at),
+            Vec3::from_array(camera.up),
+            camera.fov_degrees,
+            camera.width,
+            camera.height,
+        ),
+        path,
+        integrator,
+        spp: settings.spp,
+        seed: settings.seed,
+        x0,
+        y0,
+        w,
+        h,
+    })
+}
+
 /// Renders the pixels `x0 .. x0 + w` × `y0 .. y0 + h` of the camera's film and writes their mean
 /// radiance (linear RGB, `settings->spp` samples each) to `out_rgb`: `3·w·h` floats, row-major
 /// within the tile. A pixel's value does not depend on the tile it was rendered in; samples that
 /// come out NaN or infinite count as black. Writes nothing unless it returns `EMBER_OK`.
+///
+/// Path tracers only: the light tracer and BDPT put light on other pixels than their samples'
+/// and render through `ember_render_tile_splats`; here they get `EMBER_ERROR_INVALID_ARGUMENT`.
+/// This call's pixel equals `ember_splat_resolve` of that call's own-sample sum with no splats,
+/// bit for bit.
 ///
 /// # Safety
 /// `scene`, `camera` and `settings` must point to valid structs, the scene's arrays valid for
@@ -1042,66 +1281,387 @@ unsafe fn ember_render_tile_impl(
     table: &mut [Material; EMBER_MAX_MATERIALS as usize],
 ) -> Result<(), i32> {
     // SAFETY: the caller's contract above.
-    let (view, camera, settings) = unsafe {
-        (
-            scene_view(record(scene)?, table)?,
-            record(camera)?,
-            record(settings)?,
-        )
-    };
-    let path = path_settings(settings)?;
-    let integrator = match settings.integrator {
-        EMBER_INTEGRATOR_PATH_IMPLICIT => Integrator::PathImplicit,
-        EMBER_INTEGRATOR_PATH_EXPLICIT => Integrator::PathExplicit,
-        EMBER_INTEGRATOR_PATH_MIS => Integrator::PathMis,
-        _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
-    };
-    let finite = |v: [f32; 3]| v.iter().all(|c| c.is_finite());
-    let camera_ok = finite(camera.eye)
-        && finite(camera.at)
-        && finite(camera.up)
-        && camera.fov_degrees > 0.0
-        && camera.fov_degrees < 180.0
-        && camera.width > 0
-        && camera.height > 0
-        && camera.eye != camera.at;
-    let tile_ok = x0.checked_add(w).is_some_and(|x1| x1 <= camera.width)
-        && y0.checked_add(h).is_some_and(|y1| y1 <= camera.height);
-    if !camera_ok || !tile_ok {
+    let job = unsafe { tile_job(scene, camera, settings, (x0, y0, w, h), table) }?;
+    if job.integrator.splats() {
         return Err(EMBER_ERROR_INVALID_ARGUMENT);
     }
-    let len = (w as usize)
-        .checked_mul(h as usize)
-        .and_then(|n| n.checked_mul(3))
-        .ok_or(EMBER_ERROR_SIZE)?;
     // SAFETY: the caller guarantees `3·w·h` writable floats that alias no input.
-    let out = unsafe { slice_mut(out_rgb, len) }?;
-    let cam = Camera::look_at(
-        Vec3::from_array(camera.eye),
-        Vec3::from_array(camera.at),
-        Vec3::from_array(camera.up),
-        camera.fov_degrees,
-        camera.width,
-        camera.height,
+    let out = unsafe { slice_mut(out_rgb, job.floats()?) }?;
+    let n = job.spp as f32;
+    job.render(out, None, &mut NoSplats, |stats| stats.sum / n);
+    Ok(())
+}
+
+/// Renders the pixels `x0 .. x0 + w` × `y0 .. y0 + h` of the camera's film with any integrator,
+/// splatting ones included: writes each pixel's **sum** over its `settings->spp` own samples
+/// (linear RGB, not divided by `spp`; 0 for the light tracer) to `out_sum_rgb` (`3·w·h` floats,
+/// row-major within the tile), and **adds** the light its samples put on any pixel of the film
+/// (the light tracer's connections to the camera, BDPT's `t = 1` strategies) to the caller's
+/// splat buffer `splats`: `splat_count` fixed-point sums, one `int64_t[3]` per pixel of the
+/// whole film, row-major, 32 fraction bits (`ember_splat_buffer_size`; the caller zeroes it
+/// before the first call). `ember_splat_resolve` then turns the sums of the whole image and
+/// the splat buffer into the image.
+///
+/// - **Tiles and threads.** Sample `i` of pixel `(x, y)` is the same whatever tile renders it:
+///   for the light tracer it traces one light path, keyed by the pixel and `i`, so calls for
+///   disjoint tiles that cover the film trace each of the image's `W·H·spp` light paths once
+///   (BDPT: one camera and one light subpath per pixel sample). Splats are integers added
+///   exactly: concurrent calls need **separate splat buffers** (a call adds to its buffer
+///   without synchronisation), which the caller sums with `ember_splat_merge` in any order;
+///   the merged buffer, and so the image, is bit-identical whatever the tiles, threads and
+///   order. Calls in sequence may share one buffer.
+/// - **Scratch.** BDPT keeps its two subpaths in `scratch`: at least `ember_render_scratch_size`
+///   bytes, aligned as that call says, one per concurrent call (the call overwrites it; its
+///   contents before and after do not matter). Other integrators ignore `scratch` and
+///   `scratch_bytes`.
+/// - **Path tracers** render here too: `splats` may then be null with `splat_count` 0 (a
+///   given buffer is checked and left unchanged), and `ember_splat_resolve` of the sums gives
+///   `ember_render_tile`'s pixels bit for bit.
+///
+/// Errors: `EMBER_ERROR_NULL_POINTER` for a null `splats` with a splatting integrator (or with
+/// `splat_count` > 0) and a null `scratch` with BDPT; `EMBER_ERROR_SIZE` when `splat_count` is
+/// not `camera->width · camera->height` (for a non-null buffer), `scratch_bytes` is too small,
+/// or an array is misaligned; `EMBER_ERROR_INVALID_ARGUMENT` as for `ember_render_tile`, for a
+/// BDPT `max_depth` above `EMBER_BDPT_MAX_DEPTH`, and when two of `out_sum_rgb`, `splats` and
+/// `scratch` overlap. Splat values that are NaN, infinite or of magnitude 2^31 or more are
+/// dropped (like non-finite samples, which count as black), and the splat sums saturate.
+/// Writes nothing (not the sums, the splats or the scratch) unless it returns `EMBER_OK`.
+///
+/// # Safety
+/// As for [`ember_render_tile`]; `out_sum_rgb` writable for `3·w·h` floats; `splats` null or
+/// readable and writable for `splat_count` entries; `scratch` null or writable for
+/// `scratch_bytes` bytes; none of them overlapping an input or being accessed by another thread
+/// during the call.
+#[no_mangle]
+pub unsafe extern "C" fn ember_render_tile_splats(
+    scene: *const EmberScene,
+    camera: *const EmberCamera,
+    settings: *const EmberSettings,
+    x0: u32,
+    y0: u32,
+    w: u32,
+    h: u32,
+    out_sum_rgb: *mut f32,
+    splats: *mut [i64; 3],
+    splat_count: usize,
+    scratch: *mut c_void,
+    scratch_bytes: usize,
+) -> i32 {
+    let mut table = [BLACK; EMBER_MAX_MATERIALS as usize];
+    let out = TileOutput {
+        sum_rgb: out_sum_rgb,
+        splats,
+        splat_count,
+        scratch,
+        scratch_bytes,
+    };
+    // SAFETY: the caller upholds the contract documented above.
+    status(unsafe {
+        ember_render_tile_splats_impl(scene, camera, settings, (x0, y0, w, h), out, &mut table)
+    })
+}
+
+/// The output arrays of [`ember_render_tile_splats`].
+struct TileOutput {
+    sum_rgb: *mut f32,
+    splats: *mut [i64; 3],
+    splat_count: usize,
+    scratch: *mut c_void,
+    scratch_bytes: usize,
+}
+
+/// The byte range `(start, length)` of `len` elements at `ptr`, after the checks [`slice`]
+/// makes (non-null unless empty, aligned, a size that fits `isize` and does not wrap);
+/// `(0, 0)` when empty.
+fn array_range<T>(ptr: *const T, len: usize) -> Result<(usize, usize), i32> {
+    if len == 0 {
+        return Ok((0, 0));
+    }
+    if ptr.is_null() {
+        return Err(EMBER_ERROR_NULL_POINTER);
+    }
+    let bytes = len
+        .checked_mul(core::mem::size_of::<T>())
+        .filter(|&b| b <= isize::MAX as usize && (ptr as usize).checked_add(b).is_some());
+    match bytes {
+        Some(b) if ptr.is_aligned() => Ok((ptr as usize, b)),
+        _ => Err(EMBER_ERROR_SIZE),
+    }
+}
+
+/// Whether two byte ranges from [`array_range`] share no byte.
+fn disjoint(a: (usize, usize), b: (usize, usize)) -> bool {
+    a.1 == 0 || b.1 == 0 || a.0 + a.1 <= b.0 || b.0 + b.1 <= a.0
+}
+
+/// Makes `ptr` a [`BdptScratch`], initialising it vertex by vertex in place (no scratch-sized
+/// temporary on the stack).
+///
+/// # Safety
+/// `ptr` must be non-null, aligned for `BdptScratch` and valid for writes of its size, and no
+/// one else may access that memory during `'a`.
+unsafe fn init_scratch<'a>(ptr: *mut BdptScratch) -> &'a mut BdptScratch {
+    // SAFETY: the caller guarantees the memory; `addr_of_mut!` projects to the fields without
+    // creating references to the uninitialised struct; each field is an array of `Vertex`, so
+    // its elements are at `cast::<Vertex>().add(i)` for `i` below its length; after both
+    // arrays are written every field is initialised (padding bytes, if any, need not be), so
+    // the memory holds a valid `BdptScratch`.
+    unsafe {
+        let camera = core::ptr::addr_of_mut!((*ptr).camera).cast::<Vertex>();
+        for i in 0..CAMERA_PATH_VERTICES {
+            camera.add(i).write(Vertex::default());
+        }
+        let light = core::ptr::addr_of_mut!((*ptr).light).cast::<Vertex>();
+        for i in 0..LIGHT_PATH_VERTICES {
+            light.add(i).write(Vertex::default());
+        }
+        &mut *ptr
+    }
+}
+
+/// The body of [`ember_render_tile_splats`].
+///
+/// # Safety
+/// As for [`ember_render_tile_splats`].
+unsafe fn ember_render_tile_splats_impl(
+    scene: *const EmberScene,
+    camera: *const EmberCamera,
+    settings: *const EmberSettings,
+    tile: (u32, u32, u32, u32),
+    out: TileOutput,
+    table: &mut [Material; EMBER_MAX_MATERIALS as usize],
+) -> Result<(), i32> {
+    // SAFETY: the caller's contract above.
+    let job = unsafe { tile_job(scene, camera, settings, tile, table) }?;
+    let sums = array_range(out.sum_rgb.cast_const(), job.floats()?)?;
+    // The splat buffer: the film's size when given; required by the splatting integrators.
+    let splats = if out.splats.is_null() {
+        if job.integrator.splats() || out.splat_count != 0 {
+            return Err(EMBER_ERROR_NULL_POINTER);
+        }
+        (0, 0)
+    } else if out.splat_count != job.film_pixels() {
+        return Err(EMBER_ERROR_SIZE);
+    } else {
+        array_range(out.splats.cast_const(), out.splat_count)?
+    };
+    // The scratch, only for the integrators that need one.
+    // (`scratch_layout` gives BdptScratch's size and alignment, the only scratch there is.)
+    let (scratch_size, _) = scratch_layout(job.integrator);
+    let scratch = if scratch_size == 0 {
+        (0, 0)
+    } else if out.scratch.is_null() {
+        return Err(EMBER_ERROR_NULL_POINTER);
+    } else if out.scratch_bytes < scratch_size || !out.scratch.cast::<BdptScratch>().is_aligned() {
+        return Err(EMBER_ERROR_SIZE);
+    } else {
+        array_range(out.scratch.cast_const().cast::<u8>(), scratch_size)?
+    };
+    if !disjoint(sums, splats) || !disjoint(sums, scratch) || !disjoint(splats, scratch) {
+        return Err(EMBER_ERROR_INVALID_ARGUMENT);
+    }
+    // Every check is made: borrow the outputs, then write.
+    // SAFETY: the caller guarantees `3·w·h` writable floats that alias no input, checked above
+    // to be disjoint from the other outputs.
+    let sum_rgb = unsafe { slice_mut(out.sum_rgb, job.floats()?) }?;
+    let mut sink = if splats.1 == 0 {
+        None
+    } else {
+        // SAFETY: checked non-null, aligned and of the film's size, disjoint from the other
+        // outputs; the caller guarantees it readable, writable and exclusively ours.
+        let buffer = unsafe { slice_mut(out.splats, out.splat_count) }?;
+        let (width, height) = (job.camera.width, job.camera.height);
+        Some(SplatBuffer::new(width, height, buffer).ok_or(EMBER_ERROR_SIZE)?)
+    };
+    let scratch = if scratch_size == 0 {
+        None
+    } else {
+        // SAFETY: checked non-null, aligned, at least `size_of::<BdptScratch>()` bytes and
+        // disjoint from the other outputs; the caller guarantees it writable and not accessed
+        // by anyone else during the call.
+        Some(unsafe { init_scratch(out.scratch.cast::<BdptScratch>()) })
+    };
+    let sum = |stats: &PixelStats| stats.sum;
+    match &mut sink {
+        Some(sink) => job.render(sum_rgb, scratch, sink, sum),
+        // A path tracer without a splat buffer.
+        None => job.render(sum_rgb, scratch, &mut NoSplats, sum),
+    }
+    Ok(())
+}
+
+/// The splat buffer of a `width × height` film: `*out_count` entries of `int64_t[3]` (one per
+/// pixel, row-major; `width · height`), `*out_bytes` bytes (`24 · width · height`). Either out
+/// pointer may be null. `EMBER_ERROR_INVALID_ARGUMENT` for a zero width or height,
+/// `EMBER_ERROR_SIZE` when the buffer would not fit in memory (`size_t`, `PTRDIFF_MAX`).
+///
+/// # Safety
+/// Each out pointer must be null or valid for writing a `size_t`.
+#[no_mangle]
+pub unsafe extern "C" fn ember_splat_buffer_size(
+    width: u32,
+    height: u32,
+    out_count: *mut usize,
+    out_bytes: *mut usize,
+) -> i32 {
+    if width == 0 || height == 0 {
+        return EMBER_ERROR_INVALID_ARGUMENT;
+    }
+    let count = (width as usize).checked_mul(height as usize);
+    let bytes = count
+        .and_then(|n| n.checked_mul(core::mem::size_of::<[i64; 3]>()))
+        .filter(|&b| b <= isize::MAX as usize);
+    let (Some(count), Some(bytes)) = (count, bytes) else {
+        return EMBER_ERROR_SIZE;
+    };
+    // SAFETY: the caller guarantees the pointers are null or writable.
+    unsafe {
+        store(out_count, count);
+        store(out_bytes, bytes);
+    }
+    EMBER_OK
+}
+
+/// The scratch `ember_render_tile_splats` needs for `integrator` (an `EMBER_INTEGRATOR_*`):
+/// `*out_bytes` bytes aligned to `*out_align` (a power of two; `malloc` memory is always
+/// aligned enough). BDPT needs one (its two subpaths, about 24 KiB); the other integrators none
+/// (0 bytes, alignment 1). Either out pointer may be null; `EMBER_ERROR_INVALID_ARGUMENT` for
+/// an unknown integrator.
+///
+/// # Safety
+/// Each out pointer must be null or valid for writing a `size_t`.
+#[no_mangle]
+pub unsafe extern "C" fn ember_render_scratch_size(
+    integrator: u32,
+    out_bytes: *mut usize,
+    out_align: *mut usize,
+) -> i32 {
+    let (bytes, align) = match integrator_of(integrator) {
+        Ok(i) => scratch_layout(i),
+        Err(code) => return code,
+    };
+    // SAFETY: the caller guarantees the pointers are null or writable.
+    unsafe {
+        store(out_bytes, bytes);
+        store(out_align, align);
+    }
+    EMBER_OK
+}
+
+/// Adds the splat buffer `src` to `dst`, entry by entry (`count` entries of `int64_t[3]`,
+/// saturating): how the buffers of concurrent `ember_render_tile_splats` calls are combined.
+/// Splats are non-negative integers, so merging in any order, in any grouping, gives the same
+/// sums. `EMBER_ERROR_INVALID_ARGUMENT` when the two overlap (`dst == src` included).
+///
+/// # Safety
+/// `dst` must be readable and writable and `src` readable for `count` entries.
+#[no_mangle]
+pub unsafe extern "C" fn ember_splat_merge(
+    dst: *mut [i64; 3],
+    src: *const [i64; 3],
+    count: usize,
+) -> i32 {
+    // SAFETY: the caller upholds the contract documented above.
+    status(unsafe { ember_splat_merge_impl(dst, src, count) })
+}
+
+/// The body of [`ember_splat_merge`].
+///
+/// # Safety
+/// As for [`ember_splat_merge`].
+unsafe fn ember_splat_merge_impl(
+    dst: *mut [i64; 3],
+    src: *const [i64; 3],
+    count: usize,
+) -> Result<(), i32> {
+    if !disjoint(
+        array_range(dst.cast_const(), count)?,
+        array_range(src, count)?,
+    ) {
+        return Err(EMBER_ERROR_INVALID_ARGUMENT);
+    }
+    // SAFETY: the caller guarantees the entries; checked disjoint, so the shared and the
+    // exclusive borrow do not alias.
+    let (dst, src) = unsafe { (slice_mut(dst, count)?, slice(src, count)?) };
+    for (a, b) in dst.iter_mut().zip(src) {
+        for c in 0..3 {
+            a[c] = a[c].saturating_add(b[c]);
+        }
+    }
+    Ok(())
+}
+
+/// The image of a splatting render: for each of the `count` pixels, `(sum + splat) / spp` per
+/// channel, from the own-sample sums `sum_rgb` (`3·count` floats, as `ember_render_tile_splats`
+/// writes them, assembled for the whole film) and the merged splat buffer `splats` (`count`
+/// entries), into `out_rgb` (`3·count` floats; it may be `sum_rgb` itself, resolving in place,
+/// but must not overlap it otherwise, nor `splats`). `spp` is the `settings->spp` of the
+/// render, at least 1 (`EMBER_ERROR_INVALID_ARGUMENT` otherwise, and for overlapping arrays).
+///
+/// The arithmetic, which Rust hosts share (the kernel's `splat::resolve`) so that images agree
+/// bit for bit: per channel, in IEEE double precision rounded to nearest,
+/// `(float)(((double)sum + (double)splat / 4294967296.0) / (double)spp)`. Without splats this
+/// equals the float mean `sum / (float)spp` exactly, i.e. `ember_render_tile`'s pixel.
+///
+/// # Safety
+/// `sum_rgb` and `splats` must be readable for their sizes, `out_rgb` writable for `3·count`
+/// floats.
+#[no_mangle]
+pub unsafe extern "C" fn ember_splat_resolve(
+    sum_rgb: *const f32,
+    splats: *const [i64; 3],
+    count: usize,
+    spp: u32,
+    out_rgb: *mut f32,
+) -> i32 {
+    // SAFETY: the caller upholds the contract documented above.
+    status(unsafe { ember_splat_resolve_impl(sum_rgb, splats, count, spp, out_rgb) })
+}
+
+/// The body of [`ember_splat_resolve`].
+///
+/// # Safety
+/// As for [`ember_splat_resolve`].
+unsafe fn ember_splat_resolve_impl(
+    sum_rgb: *const f32,
+    splats: *const [i64; 3],
+    count: usize,
+    spp: u32,
+    out_rgb: *mut f32,
+) -> Result<(), i32> {
+    let floats = count.checked_mul(3).ok_or(EMBER_ERROR_SIZE)?;
+    let (sums, splat_range, out) = (
+        array_range(sum_rgb, floats)?,
+        array_range(splats, count)?,
+        array_range(out_rgb.cast_const(), floats)?,
     );
-    let n = settings.spp as f32;
-    for (i, px) in out.chunks_exact_mut(3).enumerate() {
-        let (x, y) = (x0 + (i % w as usize) as u32, y0 + (i / w as usize) as u32);
-        let stats = render_pixel(
-            integrator,
-            &view,
-            &cam,
-            &path,
-            settings.seed,
-            x,
-            y,
-            0,
-            settings.spp,
-            PixelStats::default(),
-            None,
-            &mut crate::splat::NoSplats,
-        );
-        px.copy_from_slice(&(stats.sum / n).to_array());
+    let in_place = out.1 > 0 && out == sums;
+    if (!in_place && !disjoint(out, sums)) || !disjoint(out, splat_range) || spp == 0 {
+        return Err(EMBER_ERROR_INVALID_ARGUMENT);
+    }
+    // SAFETY: the caller guarantees the splats readable; checked disjoint from the output.
+    let splats = unsafe { slice(splats, count) }?;
+    // SAFETY: the caller guarantees the output writable; checked disjoint from the inputs,
+    // except for the sums when they are the output itself.
+    let out = unsafe { slice_mut(out_rgb, floats) }?;
+    let resolve = |sum: &[f32], s: &[i64; 3]| {
+        splat::resolve(Rgb::new(sum[0], sum[1], sum[2]), *s, spp).to_array()
+    };
+    if in_place {
+        for (px, s) in out.chunks_exact_mut(3).zip(splats) {
+            let v = resolve(px, s);
+            px.copy_from_slice(&v);
+        }
+    } else {
+        // SAFETY: the caller guarantees the sums readable; checked disjoint from the output.
+        let sums = unsafe { slice(sum_rgb, floats) }?;
+        for ((px, sum), s) in out
+            .chunks_exact_mut(3)
+            .zip(sums.chunks_exact(3))
+            .zip(splats)
+        {
+            px.copy_from_slice(&resolve(sum, s));
+        }
     }
     Ok(())
 }
@@ -1618,7 +2178,7 @@ mod tests {
 
     #[test]
     fn old_layout_records_are_refused_not_misread() {
-        assert_eq!((ember_abi_version(), EMBER_ABI_VERSION), (2, 2));
+        assert_eq!((ember_abi_version(), EMBER_ABI_VERSION), (3, 3));
         let v1_materials = [
             MaterialV1 {
                 kind: EMBER_MATERIAL_DIFFUSE,
@@ -2132,5 +2692,674 @@ mod tests {
             clamped += usize::from(p.scale < 1.0);
         }
         assert!(clamped > 0 && clamped < materials.len(), "{clamped}");
+    }
+
+    /// A lit floor: the plane of [`geometry_only`] (diffuse) under a smaller emitting quad
+    /// facing down, with the BVH and the emitter table, for a camera in front of it.
+    struct Lit {
+        positions: [[f32; 3]; 8],
+        normals: [[f32; 3]; 8],
+        triangles: [[u32; 3]; 4],
+        ids: [u32; 4],
+        nodes: [EmberBvhNode; 7],
+        indices: [u32; 4],
+        used: u32,
+        emitters: [u32; 2],
+        cdf: [f32; 2],
+    }
+
+    impl Lit {
+        fn new() -> std::boxed::Box<Self> {
+            let mut positions = [[0.0f32; 3]; 8];
+            positions[..4].copy_from_slice(&POSITIONS);
+            for (i, p) in POSITIONS.iter().enumerate() {
+                positions[4 + i] = [0.5 * p[0], 1.5, 0.5 * p[2]];
+            }
+            let mut normals = [[0.0, 1.0, 0.0]; 8];
+            normals[4..].fill([0.0, -1.0, 0.0]);
+            let mut lit = std::boxed::Box::new(Self {
+                positions,
+                normals,
+                // The floor faces up, the light down.
+                triangles: [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]],
+                ids: [0, 0, 1, 1],
+                nodes: [EmberBvhNode::default(); 7],
+                indices: [0; 4],
+                used: 0,
+                emitters: [0; 2],
+                cdf: [0.0; 2],
+            });
+            let scene = lit.unbuilt();
+            let mut used = 0;
+            let r = unsafe {
+                ember_build_bvh(
+                    &scene,
+                    lit.nodes.as_mut_ptr(),
+                    7,
+                    lit.indices.as_mut_ptr(),
+                    4,
+                    &mut used,
+                )
+            };
+            assert_eq!(r, EMBER_OK);
+            lit.used = used;
+            let mut n = 0;
+            let r = unsafe {
+                ember_build_emitters(
+                    &scene,
+                    lit.emitters.as_mut_ptr(),
+                    lit.cdf.as_mut_ptr(),
+                    2,
+                    &mut n,
+                )
+            };
+            assert_eq!((r, n, lit.emitters), (EMBER_OK, 2, [2, 3]));
+            lit
+        }
+
+        fn unbuilt(&self) -> EmberScene {
+            EmberScene {
+                positions: self.positions.as_ptr(),
+                normals: self.normals.as_ptr(),
+                vertex_count: 8,
+                triangles: self.triangles.as_ptr(),
+                triangle_materials: self.ids.as_ptr(),
+                triangle_count: 4,
+                ..geometry_only()
+            }
+        }
+
+        fn scene(&self) -> EmberScene {
+            EmberScene {
+                emitter_triangles: self.emitters.as_ptr(),
+                emitter_cdf: self.cdf.as_ptr(),
+                emitter_count: 2,
+                bvh_nodes: self.nodes.as_ptr(),
+                bvh_node_count: self.used,
+                bvh_indices: self.indices.as_ptr(),
+                ..self.unbuilt()
+            }
+        }
+    }
+
+    const LIT_CAMERA: EmberCamera = EmberCamera {
+        struct_size: size_of::<EmberCamera>() as u32,
+        eye: [0.0, 1.0, 3.0],
+        at: [0.0, 0.5, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_degrees: 40.0,
+        width: 4,
+        height: 4,
+    };
+    const PIXELS: usize = 16;
+
+    fn settings_for(integrator: u32) -> EmberSettings {
+        EmberSettings {
+            struct_size: size_of::<EmberSettings>() as u32,
+            integrator,
+            max_depth: -1,
+            rr_depth: 1,
+            rr_prob: 0.8,
+            spp: 3,
+            bake_estimator: EMBER_BAKE_MIS,
+            seed: 11,
+        }
+    }
+
+    const ALL_INTEGRATORS: [u32; 6] = [
+        EMBER_INTEGRATOR_PATH_IMPLICIT,
+        EMBER_INTEGRATOR_PATH_EXPLICIT,
+        EMBER_INTEGRATOR_PATH_MIS,
+        EMBER_INTEGRATOR_LIGHT_TRACING,
+        EMBER_INTEGRATOR_BDPT,
+        EMBER_INTEGRATOR_BDPT_BALANCE,
+    ];
+
+    /// A BDPT scratch as C code would allocate it: uninitialised (here: garbage) bytes.
+    fn garbage_scratch() -> std::vec::Vec<BdptScratch> {
+        let mut v = std::vec::Vec::<BdptScratch>::with_capacity(1);
+        unsafe {
+            v.as_mut_ptr()
+                .cast::<u8>()
+                .write_bytes(0xA7, size_of::<BdptScratch>())
+        };
+        v
+    }
+
+    /// Renders the tile with `ember_render_tile_splats` into the whole-film `sums` (tile
+    /// pixels only) and `splats`.
+    fn render_splats(
+        scene: &EmberScene,
+        settings: &EmberSettings,
+        (x0, y0, w, h): (u32, u32, u32, u32),
+        sums: &mut [[f32; 3]; PIXELS],
+        splats: &mut [[i64; 3]; PIXELS],
+    ) {
+        let mut scratch = garbage_scratch();
+        let mut tile = [[0.0f32; 3]; PIXELS];
+        let r = unsafe {
+            ember_render_tile_splats(
+                scene,
+                &LIT_CAMERA,
+                settings,
+                x0,
+                y0,
+                w,
+                h,
+                tile.as_mut_ptr().cast::<f32>(),
+                splats.as_mut_ptr(),
+                PIXELS,
+                scratch.as_mut_ptr().cast::<c_void>(),
+                size_of::<BdptScratch>(),
+            )
+        };
+        assert_eq!(r, EMBER_OK, "{settings:?}");
+        for (i, px) in tile.iter().take((w * h) as usize).enumerate() {
+            let (x, y) = (x0 as usize + i % w as usize, y0 as usize + i / w as usize);
+            sums[y * 4 + x] = *px;
+        }
+    }
+
+    fn bits<const N: usize, T: Copy + Into<f64>>(v: &[[T; 3]; N]) -> std::vec::Vec<u64> {
+        v.iter().flatten().map(|&c| c.into().to_bits()).collect()
+    }
+
+    #[test]
+    fn splat_entry_matches_the_kernel_whatever_the_tiles_and_merge_order() {
+        let lit = Lit::new();
+        let scene = lit.scene();
+        let mut table = [BLACK; EMBER_MAX_MATERIALS as usize];
+        let view = unsafe { scene_view(&scene, &mut table) }.unwrap();
+        let c = LIT_CAMERA;
+        let camera = Camera::look_at(
+            Vec3::from_array(c.eye),
+            Vec3::from_array(c.at),
+            Vec3::from_array(c.up),
+            c.fov_degrees,
+            c.width,
+            c.height,
+        );
+        for code in ALL_INTEGRATORS {
+            let settings = settings_for(code);
+            let integrator = integrator_of(code).unwrap();
+            // The kernel directly, one pixel after the other into one buffer.
+            let (mut sums, mut splats) = ([[0.0f32; 3]; PIXELS], [[0i64; 3]; PIXELS]);
+            let mut scratch = BdptScratch::default();
+            let mut buffer = SplatBuffer::new(4, 4, &mut splats).unwrap();
+            for (i, sum) in sums.iter_mut().enumerate() {
+                let stats = render_pixel(
+                    integrator,
+                    &view,
+                    &camera,
+                    &path_settings(&settings).unwrap(),
+                    settings.seed,
+                    (i % 4) as u32,
+                    (i / 4) as u32,
+                    0,
+                    settings.spp,
+                    PixelStats::default(),
+                    Some(&mut scratch),
+                    &mut buffer,
+                );
+                *sum = stats.sum.to_array();
+            }
+            // One call for the film.
+            let (mut one_sums, mut one_splats) = ([[0.0f32; 3]; PIXELS], [[0i64; 3]; PIXELS]);
+            render_splats(
+                &scene,
+                &settings,
+                (0, 0, 4, 4),
+                &mut one_sums,
+                &mut one_splats,
+            );
+            assert_eq!(bits(&one_sums), bits(&sums), "{integrator:?} sums");
+            assert_eq!(one_splats, splats, "{integrator:?} splats");
+            // Uneven tiles, each with its own buffer, merged in reverse order.
+            let tiles = [(0, 0, 3, 1), (3, 0, 1, 3), (0, 1, 3, 2), (0, 3, 4, 1)];
+            let mut tile_sums = [[0.0f32; 3]; PIXELS];
+            let mut buffers = [[[0i64; 3]; PIXELS]; 4];
+            for (t, b) in tiles.iter().zip(&mut buffers) {
+                render_splats(&scene, &settings, *t, &mut tile_sums, b);
+            }
+            let mut merged = [[0i64; 3]; PIXELS];
+            for b in buffers.iter().rev() {
+                let r = unsafe { ember_splat_merge(merged.as_mut_ptr(), b.as_ptr(), PIXELS) };
+                assert_eq!(r, EMBER_OK);
+            }
+            assert_eq!(bits(&tile_sums), bits(&sums), "{integrator:?} tiled sums");
+            assert_eq!(merged, splats, "{integrator:?} merged splats");
+            // The resolved image: the kernel's resolve, out of place and in place.
+            let mut image = [[0.0f32; 3]; PIXELS];
+            let r = unsafe {
+                ember_splat_resolve(
+                    tile_sums.as_ptr().cast::<f32>(),
+                    merged.as_ptr(),
+                    PIXELS,
+                    settings.spp,
+                    image.as_mut_ptr().cast::<f32>(),
+                )
+            };
+            assert_eq!(r, EMBER_OK);
+            let expect: [[f32; 3]; PIXELS] = core::array::from_fn(|i| {
+                splat::resolve(Rgb::from_array(sums[i]), splats[i], settings.spp).to_array()
+            });
+            assert_eq!(bits(&image), bits(&expect), "{integrator:?} image");
+            let r = unsafe {
+                ember_splat_resolve(
+                    tile_sums.as_ptr().cast::<f32>(),
+                    merged.as_ptr(),
+                    PIXELS,
+                    settings.spp,
+                    tile_sums.as_mut_ptr().cast::<f32>(),
+                )
+            };
+            assert_eq!(r, EMBER_OK);
+            assert_eq!(bits(&tile_sums), bits(&expect), "{integrator:?} in place");
+            let lit_channels = image.iter().flatten().filter(|&&c| c > 0.0).count();
+            let splatted = splats.iter().flatten().filter(|&&c| c > 0).count();
+            if integrator.splats() {
+                assert!(splatted > 0, "{integrator:?} splats nothing");
+            } else {
+                // A path tracer: no splats, and the resolved image is ember_render_tile's.
+                assert_eq!(splatted, 0);
+                let mut mean = [[0.0f32; 3]; PIXELS];
+                let r = unsafe {
+                    ember_render_tile(
+                        &scene,
+                        &LIT_CAMERA,
+                        &settings,
+                        0,
+                        0,
+                        4,
+                        4,
+                        mean.as_mut_ptr().cast::<f32>(),
+                    )
+                };
+                assert_eq!(r, EMBER_OK);
+                assert_eq!(bits(&mean), bits(&image), "{integrator:?} mean");
+            }
+            assert!(
+                lit_channels >= 12,
+                "{integrator:?}: {lit_channels} lit channels"
+            );
+        }
+    }
+
+    /// The arguments of `ember_render_tile_splats` after the scene and camera.
+    #[derive(Clone, Copy, Debug)]
+    struct SplatArgs {
+        settings: EmberSettings,
+        tile: (u32, u32, u32, u32),
+        sums: *mut f32,
+        splats: *mut [i64; 3],
+        count: usize,
+        scratch: *mut c_void,
+        bytes: usize,
+    }
+
+    impl SplatArgs {
+        fn call(&self, scene: &EmberScene) -> i32 {
+            let (x0, y0, w, h) = self.tile;
+            unsafe {
+                ember_render_tile_splats(
+                    scene,
+                    &LIT_CAMERA,
+                    &self.settings,
+                    x0,
+                    y0,
+                    w,
+                    h,
+                    self.sums,
+                    self.splats,
+                    self.count,
+                    self.scratch,
+                    self.bytes,
+                )
+            }
+        }
+    }
+
+    #[test]
+    fn splat_entry_checks_its_buffers_and_writes_nothing_on_error() {
+        let lit = Lit::new();
+        let scene = lit.scene();
+        let bdpt = settings_for(EMBER_INTEGRATOR_BDPT);
+        let light = settings_for(EMBER_INTEGRATOR_LIGHT_TRACING);
+        let mis = settings_for(EMBER_INTEGRATOR_PATH_MIS);
+        // The old entry point renders path tracers only.
+        let mut out = [0.0f32; 3 * PIXELS];
+        for code in [
+            EMBER_INTEGRATOR_LIGHT_TRACING,
+            EMBER_INTEGRATOR_BDPT,
+            EMBER_INTEGRATOR_BDPT_BALANCE,
+            6,
+        ] {
+            let settings = settings_for(code);
+            let (o, camera) = (out.as_mut_ptr(), &LIT_CAMERA);
+            let r = unsafe { ember_render_tile(&scene, camera, &settings, 0, 0, 4, 4, o) };
+            assert_eq!(r, EMBER_ERROR_INVALID_ARGUMENT, "integrator {code}");
+        }
+        assert_eq!(out, [0.0; 3 * PIXELS], "a refused call writes nothing");
+
+        let mut sums = [[-1.0f32; 3]; PIXELS];
+        let mut splats = [[-5i64; 3]; PIXELS + 1];
+        let mut scratch = garbage_scratch();
+        let full = size_of::<BdptScratch>();
+        let good = SplatArgs {
+            settings: bdpt,
+            tile: (0, 0, 4, 4),
+            sums: sums.as_mut_ptr().cast::<f32>(),
+            splats: splats.as_mut_ptr(),
+            count: PIXELS,
+            scratch: scratch.as_mut_ptr().cast::<c_void>(),
+            bytes: full,
+        };
+        let misaligned = unsafe { good.splats.cast::<u8>().add(4).cast::<[i64; 3]>() };
+        let misaligned_scratch = unsafe { good.scratch.cast::<u8>().add(2).cast::<c_void>() };
+        let deep = EmberSettings {
+            max_depth: EMBER_BDPT_MAX_DEPTH + 1,
+            ..bdpt
+        };
+        // One bad input each.
+        let cases = [
+            (
+                "no splat buffer (light)",
+                EMBER_ERROR_NULL_POINTER,
+                SplatArgs {
+                    settings: light,
+                    splats: null_mut(),
+                    count: 0,
+                    ..good
+                },
+            ),
+            (
+                "no splat buffer (bdpt)",
+                EMBER_ERROR_NULL_POINTER,
+                SplatArgs {
+                    splats: null_mut(),
+                    ..good
+                },
+            ),
+            (
+                "null path tracer buffer with a count",
+                EMBER_ERROR_NULL_POINTER,
+                SplatArgs {
+                    settings: mis,
+                    splats: null_mut(),
+                    ..good
+                },
+            ),
+            (
+                "no sums",
+                EMBER_ERROR_NULL_POINTER,
+                SplatArgs {
+                    sums: null_mut(),
+                    ..good
+                },
+            ),
+            (
+                "buffer of the tile's size",
+                EMBER_ERROR_SIZE,
+                SplatArgs {
+                    tile: (0, 0, 2, 2),
+                    count: 4,
+                    ..good
+                },
+            ),
+            (
+                "buffer one entry larger",
+                EMBER_ERROR_SIZE,
+                SplatArgs {
+                    count: PIXELS + 1,
+                    ..good
+                },
+            ),
+            (
+                "path tracer buffer, wrong count",
+                EMBER_ERROR_SIZE,
+                SplatArgs {
+                    settings: mis,
+                    count: 1,
+                    ..good
+                },
+            ),
+            (
+                "misaligned buffer",
+                EMBER_ERROR_SIZE,
+                SplatArgs {
+                    splats: misaligned,
+                    ..good
+                },
+            ),
+            (
+                "no scratch",
+                EMBER_ERROR_NULL_POINTER,
+                SplatArgs {
+                    scratch: null_mut(),
+                    ..good
+                },
+            ),
+            (
+                "small scratch",
+                EMBER_ERROR_SIZE,
+                SplatArgs {
+                    bytes: full - 1,
+                    ..good
+                },
+            ),
+            (
+                "misaligned scratch",
+                EMBER_ERROR_SIZE,
+                SplatArgs {
+                    scratch: misaligned_scratch,
+                    ..good
+                },
+            ),
+            (
+                "sums in the splats",
+                EMBER_ERROR_INVALID_ARGUMENT,
+                SplatArgs {
+                    sums: good.splats.cast::<f32>(),
+                    ..good
+                },
+            ),
+            (
+                "scratch in the splats",
+                EMBER_ERROR_INVALID_ARGUMENT,
+                SplatArgs {
+                    scratch: good.splats.cast::<c_void>(),
+                    ..good
+                },
+            ),
+            (
+                "too deep for bdpt",
+                EMBER_ERROR_INVALID_ARGUMENT,
+                SplatArgs {
+                    settings: deep,
+                    ..good
+                },
+            ),
+            (
+                "unknown integrator",
+                EMBER_ERROR_INVALID_ARGUMENT,
+                SplatArgs {
+                    settings: settings_for(6),
+                    ..good
+                },
+            ),
+            (
+                "tile outside the film",
+                EMBER_ERROR_INVALID_ARGUMENT,
+                SplatArgs {
+                    tile: (3, 0, 2, 1),
+                    ..good
+                },
+            ),
+        ];
+        for (what, code, args) in cases {
+            assert_eq!(args.call(&scene), code, "{what}");
+        }
+        assert!(sums.iter().flatten().all(|&c| c == -1.0), "sums written");
+        assert!(splats.iter().flatten().all(|&c| c == -5), "splats written");
+        let bytes = unsafe { core::slice::from_raw_parts(good.scratch.cast::<u8>(), full) };
+        assert!(bytes.iter().all(|&b| b == 0xA7), "scratch written");
+
+        // Accepted: the deepest bounded BDPT, a path tracer without buffers (the scratch
+        // ignored) or with one (left unchanged), a larger scratch, an empty tile without sums.
+        let mut zero = [[0i64; 3]; PIXELS];
+        let ok = SplatArgs {
+            splats: zero.as_mut_ptr(),
+            ..good
+        };
+        let deepest = EmberSettings {
+            max_depth: EMBER_BDPT_MAX_DEPTH,
+            ..bdpt
+        };
+        let mut untouched = [[0i64; 3]; PIXELS];
+        let mut big = std::vec::Vec::<BdptScratch>::with_capacity(2);
+        let accepted = [
+            SplatArgs {
+                settings: deepest,
+                tile: (1, 1, 2, 2),
+                ..ok
+            },
+            SplatArgs {
+                settings: mis,
+                splats: null_mut(),
+                count: 0,
+                scratch: misaligned_scratch,
+                bytes: 1,
+                ..ok
+            },
+            SplatArgs {
+                settings: mis,
+                splats: untouched.as_mut_ptr(),
+                ..ok
+            },
+            SplatArgs {
+                scratch: big.as_mut_ptr().cast::<c_void>(),
+                bytes: 2 * full,
+                ..ok
+            },
+            SplatArgs {
+                settings: light,
+                tile: (4, 4, 0, 0),
+                sums: null_mut(),
+                ..ok
+            },
+        ];
+        for args in accepted {
+            assert_eq!(args.call(&scene), EMBER_OK, "{args:?}");
+        }
+        assert_eq!(untouched, [[0; 3]; PIXELS]);
+        assert_ne!(zero, [[0; 3]; PIXELS]);
+    }
+
+    #[test]
+    fn splat_helpers_report_sizes_merge_and_resolve() {
+        let (mut count, mut bytes) = (0usize, 0usize);
+        let r = unsafe { ember_splat_buffer_size(4, 3, &mut count, &mut bytes) };
+        assert_eq!((r, count, bytes), (EMBER_OK, 12, 288));
+        assert_eq!(
+            unsafe { ember_splat_buffer_size(0, 3, &mut count, null_mut()) },
+            EMBER_ERROR_INVALID_ARGUMENT
+        );
+        assert_eq!(
+            unsafe { ember_splat_buffer_size(u32::MAX, u32::MAX, &mut count, &mut bytes) },
+            EMBER_ERROR_SIZE
+        );
+        assert_eq!((count, bytes), (12, 288), "a failed query writes nothing");
+        let (mut size, mut align) = (7usize, 7usize);
+        for code in [0, 1, 2, 3] {
+            let r = unsafe { ember_render_scratch_size(code, &mut size, &mut align) };
+            assert_eq!((r, size, align), (EMBER_OK, 0, 1), "integrator {code}");
+        }
+        for code in [EMBER_INTEGRATOR_BDPT, EMBER_INTEGRATOR_BDPT_BALANCE] {
+            let r = unsafe { ember_render_scratch_size(code, &mut size, &mut align) };
+            assert_eq!(
+                (r, size, align),
+                (
+                    EMBER_OK,
+                    size_of::<BdptScratch>(),
+                    core::mem::align_of::<BdptScratch>()
+                )
+            );
+        }
+        assert_eq!(
+            unsafe { ember_render_scratch_size(6, &mut size, null_mut()) },
+            EMBER_ERROR_INVALID_ARGUMENT
+        );
+
+        // Merging saturates and refuses overlapping buffers.
+        let mut a = [[1i64, i64::MAX - 1, 0], [5, 6, 7]];
+        let b = [[2i64, 5, 0], [1, 1, 1]];
+        assert_eq!(
+            unsafe { ember_splat_merge(a.as_mut_ptr(), b.as_ptr(), 2) },
+            EMBER_OK
+        );
+        assert_eq!(a, [[3, i64::MAX, 0], [6, 7, 8]]);
+        let p = a.as_mut_ptr();
+        let calls = unsafe {
+            [
+                ember_splat_merge(p, p.cast_const(), 2),
+                ember_splat_merge(p.add(1), p.cast_const(), 2),
+                ember_splat_merge(p, p.add(1).cast_const(), 1),
+                ember_splat_merge(null_mut(), b.as_ptr(), 2),
+                ember_splat_merge(p, null(), 2),
+                ember_splat_merge(null_mut(), null(), 0),
+            ]
+        };
+        assert_eq!(
+            calls,
+            [
+                EMBER_ERROR_INVALID_ARGUMENT,
+                EMBER_ERROR_INVALID_ARGUMENT,
+                EMBER_OK,
+                EMBER_ERROR_NULL_POINTER,
+                EMBER_ERROR_NULL_POINTER,
+                EMBER_OK
+            ]
+        );
+        assert_eq!(a, [[9, i64::MAX, 8], [6, 7, 8]]);
+
+        // Resolving: (sum + splat) / spp.
+        let one = splat::to_fixed(1.0).unwrap();
+        let sums = [1.0f32, 2.0, 0.0, 0.5, 0.0, 0.25];
+        let splats = [[one, 0, 2 * one], [0, one / 2, 0]];
+        let mut out = [0.0f32; 6];
+        let resolve = |sums: *const f32, spp: u32, out: *mut f32| unsafe {
+            ember_splat_resolve(sums, splats.as_ptr(), 2, spp, out)
+        };
+        assert_eq!(resolve(sums.as_ptr(), 2, out.as_mut_ptr()), EMBER_OK);
+        assert_eq!(out, [1.0, 1.0, 1.0, 0.25, 0.25, 0.125]);
+        let mut place = [0.0f32; 9];
+        place[..6].copy_from_slice(&sums);
+        let base = place.as_mut_ptr();
+        let calls = [
+            resolve(sums.as_ptr(), 0, out.as_mut_ptr()),
+            resolve(base, 2, unsafe { base.add(3) }),
+            resolve(unsafe { base.add(3) }, 2, base),
+            resolve(sums.as_ptr(), 2, splats.as_ptr().cast_mut().cast::<f32>()),
+            resolve(null(), 2, out.as_mut_ptr()),
+            resolve(sums.as_ptr(), 2, null_mut()),
+            resolve(sums.as_ptr(), 2, unsafe {
+                base.cast::<u8>().add(1).cast::<f32>()
+            }),
+        ];
+        assert_eq!(
+            calls,
+            [
+                EMBER_ERROR_INVALID_ARGUMENT,
+                EMBER_ERROR_INVALID_ARGUMENT,
+                EMBER_ERROR_INVALID_ARGUMENT,
+                EMBER_ERROR_INVALID_ARGUMENT,
+                EMBER_ERROR_NULL_POINTER,
+                EMBER_ERROR_NULL_POINTER,
+                EMBER_ERROR_SIZE
+            ]
+        );
+        assert_eq!(place[..6], sums, "refused calls write nothing");
+        assert_eq!(resolve(base, 2, base), EMBER_OK);
+        assert_eq!(place[..6], out, "in place");
     }
 }

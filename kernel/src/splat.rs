@@ -53,6 +53,32 @@ pub fn from_fixed(sum: i64) -> f64 {
     sum as f64 / (1u64 << SPLAT_FRACTION_BITS) as f64
 }
 
+/// The final value of a pixel rendered with `spp` samples: `(sum + Σ splats) / spp` per
+/// channel, where `sum` is the sum of the pixel's own samples ([`crate::integrator::PixelStats`]
+/// `::sum`, 0 for light tracing) and `splats` its fixed-point splat sums. Every host resolves
+/// images with this function (the C API's `ember_splat_resolve` too), so they agree bit for bit.
+///
+/// The arithmetic, per channel: `(f64(sum) + from_fixed(splat)) / f64(spp)` in IEEE binary64
+/// with round-to-nearest-even, rounded once to f32 at the end. In C, with `FLT_EVAL_METHOD ==
+/// 0`: `(float)(((double)sum + (double)splat / 4294967296.0) / (double)spp)`. Every step is a
+/// correctly rounded IEEE operation (the `i64 → f64` conversion, the exact division by 2³², the
+/// addition, the division, the narrowing), so the bits are the same on every target, soft
+/// float included. Without splats the result equals the f32 mean `sum / spp` exactly (binary64
+/// has more than 2·24 + 2 bits, so dividing in f64 and rounding to f32 is the correctly
+/// rounded f32 quotient): path-traced images resolve to what they were before splats existed.
+/// `spp` must be at least 1.
+#[inline]
+#[must_use]
+pub fn resolve(sum: Rgb, splats: [i64; 3], spp: u32) -> Rgb {
+    let n = f64::from(spp);
+    let c = |s: f32, f: i64| ((f64::from(s) + from_fixed(f)) / n) as f32;
+    Rgb::new(
+        c(sum.x, splats[0]),
+        c(sum.y, splats[1]),
+        c(sum.z, splats[2]),
+    )
+}
+
 /// The pixel index of `raster` in a `width × height` film, or `None` outside it.
 #[inline]
 #[must_use]
@@ -140,6 +166,59 @@ mod tests {
         let backward: i64 = values.iter().rev().map(|&v| to_fixed(v).unwrap()).sum();
         assert_eq!(forward, backward);
         assert!((from_fixed(forward) - 8.351).abs() < 1e-6);
+    }
+
+    /// The resolve arithmetic written out with f64 operations, as the C API documents it.
+    fn resolve_channel(sum: f32, splat: i64, spp: u32) -> f32 {
+        let splat = splat as f64 / 4294967296.0;
+        ((sum as f64 + splat) / spp as f64) as f32
+    }
+
+    #[test]
+    fn resolve_is_the_documented_f64_arithmetic_and_the_f32_mean_without_splats() {
+        // A deterministic spread of sums (including subnormal, huge and exactly divisible ones)
+        // and sample counts.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut differs_from_f32_sum = 0;
+        for i in 0..200_000u32 {
+            let bits = next();
+            let sum = match i % 4 {
+                0 => f32::from_bits((bits as u32) & 0x7f7f_ffff),
+                1 => (bits % 1_000_000) as f32 * 1e-3,
+                2 => f32::from_bits(bits as u32 & 0x007f_ffff),
+                _ => (bits >> 40) as f32,
+            };
+            let spp = [1, 2, 3, 4, 7, 10, 64, 1000, 4097, u32::MAX][i as usize % 10];
+            // Without splats: exactly the f32 mean the path tracers' hosts compute.
+            let r = resolve(Rgb::splat(sum), [0; 3], spp);
+            assert_eq!(
+                r.x.to_bits(),
+                (sum / spp as f32).to_bits(),
+                "{sum:e} / {spp}"
+            );
+            let splat = (next() >> 20) as i64;
+            let r = resolve(Rgb::new(sum, 0.0, sum), [splat, splat, 0], spp);
+            assert_eq!(r.x.to_bits(), resolve_channel(sum, splat, spp).to_bits());
+            assert_eq!(r.y.to_bits(), resolve_channel(0.0, splat, spp).to_bits());
+            assert_eq!(r.z.to_bits(), (sum / spp as f32).to_bits());
+            // Not the same as adding the splats in f32 first (so the f64 steps matter).
+            let f32_sum = ((sum + from_fixed(splat) as f32) / spp as f32).to_bits();
+            differs_from_f32_sum += usize::from(r.x.to_bits() != f32_sum);
+        }
+        assert!(differs_from_f32_sum > 1000, "{differs_from_f32_sum}");
+        // Light tracing: no own samples, the splats over spp.
+        let one = to_fixed(1.0).unwrap();
+        assert_eq!(
+            resolve(Rgb::ZERO, [3 * one, one, 0], 4),
+            Rgb::new(0.75, 0.25, 0.0)
+        );
+        assert_eq!(resolve(Rgb::ONE, [one, 0, 0], 2), Rgb::new(1.0, 0.5, 0.5));
     }
 
     #[test]

@@ -5,21 +5,33 @@
  * coordinates: diffuse, Phong and mixture boxes, a mirror, a rough metal panel, a glass box
  * with a frosted face, a textured floor and a textured Phong picture) in arrays, builds the
  * BVH and the emitter table into its own buffers, renders the box with each path integrator
- * from two threads (pthreads, the top and bottom halves, each in 8x8 tiles), bakes a few
- * points, checks the ABI version and that bad input (old-layout records included) gets error
- * codes, and prints the FNV-1a hashes of the pixels and of the baked values. With an argument
- * it also writes every array and result to that file (raw little-endian), which
+ * from two threads (pthreads, the top and bottom halves, each in 8x8 tiles), renders it with
+ * the light tracer and BDPT (power and balance heuristics) the same way, each thread adding
+ * its splats to its own splat buffer, merges the two buffers and resolves the images, bakes a
+ * few points, checks the ABI version and that bad input (old-layout records included) gets
+ * error codes, and prints the FNV-1a hashes of the pixels and of the baked values. With an
+ * argument it also writes every array and result to that file (raw little-endian), which
  * tests/tests/capi.rs compares bit for bit with the Rust API's.
+ *
+ * The rendering threads run on stacks of exactly EMBER_STACK_BYTES that this program
+ * allocates above a guard page and fills with a pattern (pthread_attr_setstack); after each
+ * join it measures how deep the pattern was overwritten and fails if a thread used more than
+ * half of it (the header's margin). It prints the deepest use as `stack <bytes>` (on stderr).
  *
  *   cc -std=c11 -O2 -pthread -I kernel/include tests/capi/cornell.c libember_capi.a \
  *      -lpthread -ldl -lm -o cornell && ./cornell [OUT.bin]
  */
+/* pthread_attr_setstack is POSIX.1-2001; -std=c11 alone does not declare it. */
+#define _POSIX_C_SOURCE 200809L
+
 #include "ember.h"
 
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #define WIDTH 32
 #define HEIGHT 32
@@ -201,8 +213,12 @@ typedef struct LegacyMaterial {
 typedef struct Job {
     const EmberScene *scene;
     const EmberSettings *settings;
-    float *image; /* WIDTH * HEIGHT * 3 */
+    float *image; /* WIDTH * HEIGHT * 3: means, or own-sample sums when splats is set */
     uint32_t y0, y1;
+    int64_t (*splats)[3]; /* NULL: ember_render_tile; else this thread's splat buffer */
+    size_t splat_count;
+    void *scratch; /* BDPT's subpaths, one per thread */
+    size_t scratch_bytes;
     int32_t status;
 } Job;
 
@@ -215,7 +231,13 @@ static void *render_rows(void *arg) {
         for (uint32_t tx = 0; tx < WIDTH; tx += TILE) {
             uint32_t w = WIDTH - tx < TILE ? WIDTH - tx : TILE;
             uint32_t h = job->y1 - ty < TILE ? job->y1 - ty : TILE;
-            int32_t s = ember_render_tile(job->scene, &CAMERA, job->settings, tx, ty, w, h, tile);
+            int32_t s = job->splats
+                            ? ember_render_tile_splats(job->scene, &CAMERA, job->settings, tx,
+                                                       ty, w, h, tile, job->splats,
+                                                       job->splat_count, job->scratch,
+                                                       job->scratch_bytes)
+                            : ember_render_tile(job->scene, &CAMERA, job->settings, tx, ty, w,
+                                                h, tile);
             if (s != EMBER_OK) {
                 job->status = s;
                 return NULL;
@@ -228,6 +250,60 @@ static void *render_rows(void *arg) {
     }
     return NULL;
 }
+
+/* The rendering threads' stacks: EMBER_STACK_BYTES each, filled with PAINT before a thread
+ * starts, so that the deepest byte it overwrote shows how much stack it used. */
+#define PAINT 0xA5
+#define NTHREADS 2
+static unsigned char *stacks[NTHREADS];
+static unsigned char *stack_blocks[NTHREADS]; /* a guard page, then the stack */
+static size_t page;
+static size_t stack_peak; /* the most any rendering thread used */
+
+/* Bytes of `stack` (EMBER_STACK_BYTES, growing down) that a thread overwrote. */
+static size_t stack_used(const unsigned char *stack) {
+    size_t untouched = 0;
+    while (untouched < EMBER_STACK_BYTES && stack[untouched] == PAINT) untouched++;
+    return EMBER_STACK_BYTES - untouched;
+}
+
+/* Runs the jobs on NTHREADS threads with painted stacks of EMBER_STACK_BYTES. */
+static void run_jobs(Job jobs[NTHREADS]) {
+    pthread_t threads[NTHREADS];
+    for (int t = 0; t < NTHREADS; t++) {
+        pthread_attr_t attr;
+        memset(stacks[t], PAINT, EMBER_STACK_BYTES);
+        if (pthread_attr_init(&attr) != 0 ||
+            pthread_attr_setstack(&attr, stacks[t], EMBER_STACK_BYTES) != 0 ||
+            pthread_create(&threads[t], &attr, render_rows, &jobs[t]) != 0) {
+            fprintf(stderr, "cornell: cannot start a thread on a %u-byte stack\n",
+                    (unsigned)EMBER_STACK_BYTES);
+            exit(1);
+        }
+        pthread_attr_destroy(&attr);
+    }
+    for (int t = 0; t < NTHREADS; t++) {
+        pthread_join(threads[t], NULL);
+        size_t used = stack_used(stacks[t]);
+        if (used > stack_peak) stack_peak = used;
+        if (2 * used > EMBER_STACK_BYTES) {
+            fprintf(stderr, "cornell: a rendering thread used %zu of its %u stack bytes\n",
+                    used, (unsigned)EMBER_STACK_BYTES);
+            exit(1);
+        }
+    }
+    for (int t = 0; t < NTHREADS; t++) {
+        if (jobs[t].status != EMBER_OK) {
+            fprintf(stderr, "cornell: thread %d failed with %d\n", t, (int)jobs[t].status);
+            exit(1);
+        }
+    }
+}
+
+/* The splatting integrators, as tests/determinism renders them (SPLAT_INTEGRATORS). */
+#define NSPLAT 3
+static const uint32_t SPLAT_INTEGRATORS[NSPLAT] = {
+    EMBER_INTEGRATOR_LIGHT_TRACING, EMBER_INTEGRATOR_BDPT, EMBER_INTEGRATOR_BDPT_BALANCE};
 
 /* 64-bit FNV-1a over the little-endian bytes of each float (tests/determinism's hash). */
 static uint64_t fnv1a(uint64_t h, const float *values, size_t n) {
@@ -315,6 +391,16 @@ int main(int argc, char **argv) {
     scene.bvh_indices = indices;
     CHECK(ember_scene_check(&scene));
 
+    for (int t = 0; t < NTHREADS; t++) {
+        /* Below each stack a page that faults when touched: a thread that outgrows its stack
+         * crashes instead of writing over other memory. */
+        long ps = sysconf(_SC_PAGESIZE);
+        page = ps > 0 ? (size_t)ps : 4096;
+        stack_blocks[t] = aligned_alloc(page, page + EMBER_STACK_BYTES);
+        if (!stack_blocks[t] || mprotect(stack_blocks[t], page, PROT_NONE) != 0) return 1;
+        stacks[t] = stack_blocks[t] + page;
+    }
+
     /* Three renders, each by two threads. */
     static float images[3][WIDTH * HEIGHT * 3];
     EmberSettings settings = {sizeof(EmberSettings), EMBER_INTEGRATOR_PATH_IMPLICIT, -1, 3, 0.9f,
@@ -323,18 +409,83 @@ int main(int argc, char **argv) {
                                      EMBER_INTEGRATOR_PATH_EXPLICIT, EMBER_INTEGRATOR_PATH_MIS};
     for (int k = 0; k < 3; k++) {
         settings.integrator = integrators[k];
-        Job jobs[2] = {{&scene, &settings, images[k], 0, HEIGHT / 2, 0},
-                       {&scene, &settings, images[k], HEIGHT / 2, HEIGHT, 0}};
-        pthread_t threads[2];
-        for (int t = 0; t < 2; t++) {
-            if (pthread_create(&threads[t], NULL, render_rows, &jobs[t]) != 0) {
-                fprintf(stderr, "cornell: pthread_create failed\n");
-                return 1;
-            }
+        Job jobs[NTHREADS] = {{&scene, &settings, images[k], 0, HEIGHT / 2, NULL, 0, NULL, 0, 0},
+                              {&scene, &settings, images[k], HEIGHT / 2, HEIGHT, NULL, 0, NULL,
+                               0, 0}};
+        run_jobs(jobs);
+    }
+
+    /* The splatting renders: the same two threads and tiles, each thread with its own splat
+     * buffer (zeroed) and scratch, the buffers merged after the join, the image resolved. */
+    size_t splat_count = 0, splat_bytes = 0;
+    CHECK(ember_splat_buffer_size(WIDTH, HEIGHT, &splat_count, &splat_bytes));
+    if (splat_count != WIDTH * HEIGHT || splat_bytes != splat_count * sizeof(int64_t[3])) {
+        fprintf(stderr, "cornell: splat buffer of %zu entries, %zu bytes\n", splat_count,
+                splat_bytes);
+        return 1;
+    }
+    size_t scratch_bytes = 0, scratch_align = 0;
+    CHECK(ember_render_scratch_size(EMBER_INTEGRATOR_BDPT, &scratch_bytes, &scratch_align));
+    static float splat_sums[NSPLAT][WIDTH * HEIGHT * 3];
+    static int64_t merged[NSPLAT][WIDTH * HEIGHT][3];
+    static float splat_images[NSPLAT][WIDTH * HEIGHT * 3];
+    int64_t (*thread_splats[NTHREADS])[3];
+    void *scratches[NTHREADS];
+    for (int t = 0; t < NTHREADS; t++) {
+        thread_splats[t] = malloc(splat_bytes);
+        /* malloc memory is aligned for any object, scratch_align (a power of two) included. */
+        scratches[t] = malloc(scratch_bytes);
+        if (!thread_splats[t] || !scratches[t] || (uintptr_t)scratches[t] % scratch_align) {
+            return 1;
         }
-        for (int t = 0; t < 2; t++) {
-            pthread_join(threads[t], NULL);
-            CHECK(jobs[t].status);
+    }
+    for (int k = 0; k < NSPLAT; k++) {
+        EmberSettings s = settings;
+        s.integrator = SPLAT_INTEGRATORS[k];
+        Job jobs[NTHREADS];
+        for (int t = 0; t < NTHREADS; t++) {
+            memset(thread_splats[t], 0, splat_bytes);
+            Job job = {&scene, &s, splat_sums[k], t * HEIGHT / NTHREADS,
+                       (t + 1) * HEIGHT / NTHREADS, thread_splats[t], splat_count, scratches[t],
+                       scratch_bytes, 0};
+            jobs[t] = job;
+        }
+        run_jobs(jobs);
+        /* Merge in the other order than the threads were started in: it does not matter. */
+        memset(merged[k], 0, splat_bytes);
+        for (int t = NTHREADS - 1; t >= 0; t--) {
+            CHECK(ember_splat_merge(merged[k], (const int64_t(*)[3])thread_splats[t],
+                                    splat_count));
+        }
+        CHECK(ember_splat_resolve(splat_sums[k], (const int64_t(*)[3])merged[k], splat_count,
+                                  s.spp, splat_images[k]));
+    }
+
+    /* Independent of the split: BDPT as one call for the whole film on this thread, into one
+     * buffer, gives the same sums, splats and image; and a path tracer through the splat entry,
+     * resolved with no splats, gives ember_render_tile's means. */
+    {
+        static float sums[WIDTH * HEIGHT * 3], image[WIDTH * HEIGHT * 3];
+        static int64_t one[WIDTH * HEIGHT][3];
+        EmberSettings s = settings;
+        s.integrator = SPLAT_INTEGRATORS[1];
+        memset(one, 0, sizeof one);
+        CHECK(ember_render_tile_splats(&scene, &CAMERA, &s, 0, 0, WIDTH, HEIGHT, sums, one,
+                                       splat_count, scratches[0], scratch_bytes));
+        CHECK(ember_splat_resolve(sums, (const int64_t(*)[3])one, splat_count, s.spp, sums));
+        if (memcmp(one, merged[1], sizeof one) != 0 ||
+            memcmp(sums, splat_images[1], sizeof sums) != 0) {
+            fprintf(stderr, "cornell: one-call BDPT differs from the two-thread tiled render\n");
+            return 1;
+        }
+        s.integrator = EMBER_INTEGRATOR_PATH_MIS;
+        memset(one, 0, sizeof one);
+        CHECK(ember_render_tile_splats(&scene, &CAMERA, &s, 0, 0, WIDTH, HEIGHT, sums, NULL, 0,
+                                       NULL, 0));
+        CHECK(ember_splat_resolve(sums, (const int64_t(*)[3])one, splat_count, s.spp, image));
+        if (memcmp(image, images[2], sizeof image) != 0) {
+            fprintf(stderr, "cornell: resolved MIS sums differ from ember_render_tile\n");
+            return 1;
         }
     }
 
@@ -360,6 +511,35 @@ int main(int argc, char **argv) {
     bad_settings.integrator = 7;
     EXPECT(ember_render_tile(&scene, &CAMERA, &bad_settings, 0, 0, 1, 1, px),
            EMBER_ERROR_INVALID_ARGUMENT);
+    /* The splatting integrators: not through ember_render_tile, and only with their buffers. */
+    EmberSettings bdpt = settings;
+    bdpt.integrator = EMBER_INTEGRATOR_BDPT;
+    EXPECT(ember_render_tile(&scene, &CAMERA, &bdpt, 0, 0, 1, 1, px),
+           EMBER_ERROR_INVALID_ARGUMENT);
+    EXPECT(ember_render_tile_splats(&scene, &CAMERA, &bdpt, 0, 0, 1, 1, px, NULL, 0,
+                                    scratches[0], scratch_bytes),
+           EMBER_ERROR_NULL_POINTER);
+    EXPECT(ember_render_tile_splats(&scene, &CAMERA, &bdpt, 0, 0, 1, 1, px, thread_splats[0],
+                                    splat_count - 1, scratches[0], scratch_bytes),
+           EMBER_ERROR_SIZE);
+    EXPECT(ember_render_tile_splats(&scene, &CAMERA, &bdpt, 0, 0, 1, 1, px, thread_splats[0],
+                                    splat_count, NULL, 0),
+           EMBER_ERROR_NULL_POINTER);
+    EXPECT(ember_render_tile_splats(&scene, &CAMERA, &bdpt, 0, 0, 1, 1, px, thread_splats[0],
+                                    splat_count, scratches[0], scratch_bytes - 1),
+           EMBER_ERROR_SIZE);
+    bdpt.max_depth = EMBER_BDPT_MAX_DEPTH + 1;
+    EXPECT(ember_render_tile_splats(&scene, &CAMERA, &bdpt, 0, 0, 1, 1, px, thread_splats[0],
+                                    splat_count, scratches[0], scratch_bytes),
+           EMBER_ERROR_INVALID_ARGUMENT);
+    EXPECT(ember_splat_merge(thread_splats[0], (const int64_t(*)[3])thread_splats[0],
+                             splat_count),
+           EMBER_ERROR_INVALID_ARGUMENT);
+    EXPECT(ember_splat_resolve(splat_sums[0], (const int64_t(*)[3])merged[0], splat_count, 0,
+                               px),
+           EMBER_ERROR_INVALID_ARGUMENT);
+    EXPECT(ember_splat_buffer_size(0, HEIGHT, NULL, NULL), EMBER_ERROR_INVALID_ARGUMENT);
+    EXPECT(ember_render_scratch_size(7, NULL, NULL), EMBER_ERROR_INVALID_ARGUMENT);
     EmberScene bad = scene;
     bad.material_count = 3; /* triangles refer to materials 3 to 11 */
     EXPECT(ember_render_tile(&bad, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_INVALID_SCENE);
@@ -423,8 +603,13 @@ int main(int argc, char **argv) {
     for (int k = 0; k < 3; k++) render_hash = fnv1a(render_hash, images[k], WIDTH * HEIGHT * 3);
     uint64_t bake_hash = 0xcbf29ce484222325ull;
     for (int k = 0; k < 2; k++) bake_hash = fnv1a(bake_hash, bakes[k], NPOINTS * 3);
-    printf("render %016llx\nbake %016llx\n", (unsigned long long)render_hash,
-           (unsigned long long)bake_hash);
+    uint64_t splat_hash = 0xcbf29ce484222325ull;
+    for (int k = 0; k < NSPLAT; k++) {
+        splat_hash = fnv1a(splat_hash, splat_images[k], WIDTH * HEIGHT * 3);
+    }
+    printf("render %016llx\nbake %016llx\nsplat %016llx\n", (unsigned long long)render_hash,
+           (unsigned long long)bake_hash, (unsigned long long)splat_hash);
+    fprintf(stderr, "stack %zu\n", stack_peak);
 
     if (argc > 1) {
         FILE *f = fopen(argv[1], "wb");
@@ -454,6 +639,11 @@ int main(int argc, char **argv) {
         write_all(f, images, sizeof images);
         write_u32(f, NPOINTS);
         write_all(f, bakes, sizeof bakes);
+        write_u32(f, NSPLAT);
+        write_all(f, splat_sums, sizeof splat_sums);
+        write_all(f, merged, sizeof merged);
+        write_all(f, splat_images, sizeof splat_images);
+        write_u32(f, (uint32_t)stack_peak);
         if (fclose(f) != 0) {
             perror(argv[1]);
             return 1;
@@ -463,5 +653,11 @@ int main(int argc, char **argv) {
     free(indices);
     free(emitter_triangles);
     free(emitter_cdf);
+    for (int t = 0; t < NTHREADS; t++) {
+        free(thread_splats[t]);
+        free(scratches[t]);
+        mprotect(stack_blocks[t], page, PROT_READ | PROT_WRITE);
+        free(stack_blocks[t]);
+    }
     return 0;
 }

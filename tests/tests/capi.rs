@@ -2,13 +2,16 @@
 //! (`cargo build -p ember-capi --release`), compiles tests/capi/cornell.c against it and
 //! kernel/include/ember.h with the system C compiler (`$CC` or `cc`), runs it (it checks the
 //! ABI version, renders the determinism Cornell box, with every material and textures, from
-//! two pthreads and bakes a few points), and checks that every array it built and every pixel
-//! and baked value it produced is bit-identical to what the Rust API computes from the same
-//! arrays (tests/determinism).
+//! two pthreads with each path tracer, the light tracer and BDPT, whose splats each thread adds
+//! to its own buffer before they are merged, and bakes a few points), and checks that every
+//! array it built and every pixel, splat sum and baked value it produced is bit-identical to
+//! what the Rust API computes from the same arrays (tests/determinism), and that its rendering
+//! threads stayed within half of `EMBER_STACK_BYTES`.
 
 use ember_determinism::{
-    bake_point, render_pixel_rgb, Scene, BAKE_ESTIMATORS, BAKE_POINTS, HEIGHT, INTEGRATORS,
-    MATERIALS, TEXELS, TEXTURES, TRIANGLES, VERTICES, WIDTH,
+    bake_point, render_pixel_rgb, render_splat_image, resolve_pixel, Scene, BAKE_ESTIMATORS,
+    BAKE_POINTS, HEIGHT, INTEGRATORS, MATERIALS, PIXELS, SPLAT_INTEGRATORS, TEXELS, TEXTURES,
+    TRIANGLES, VERTICES, WIDTH,
 };
 use ember_kernel::bvh::{self, BvhNode};
 use std::path::{Path, PathBuf};
@@ -54,6 +57,15 @@ impl Reader {
     }
     fn u32s(&mut self, n: usize) -> Vec<u32> {
         (0..n).map(|_| self.u32()).collect()
+    }
+    fn i64s(&mut self, n: usize) -> Vec<i64> {
+        (0..n)
+            .map(|_| {
+                let v = i64::from_le_bytes(self.0[self.1..self.1 + 8].try_into().unwrap());
+                self.1 += 8;
+                v
+            })
+            .collect()
     }
     /// Floats as bit patterns, so comparisons are bitwise.
     fn f32_bits(&mut self, n: usize) -> Vec<u32> {
@@ -207,6 +219,64 @@ fn c_program_renders_bit_identically_to_the_rust_api() {
             );
         }
     }
+    // The splatting renders: the sums of each tile (two threads, 8x8 tiles in C), the splat
+    // buffers of the two threads merged, and the resolved image, each equal to a single-thread
+    // render of the whole film into one buffer in Rust.
+    assert_eq!(r.u32() as usize, SPLAT_INTEGRATORS.len());
+    let mut rust_sums = Vec::new();
+    let mut rust_splats = Vec::new();
+    for &integrator in &SPLAT_INTEGRATORS {
+        let (mut sums, mut splats) = ([[0.0f32; 3]; PIXELS], [[0i64; 3]; PIXELS]);
+        render_splat_image(&view, integrator, &mut sums, &mut splats);
+        rust_sums.push(sums);
+        rust_splats.push(splats);
+    }
+    for (k, integrator) in SPLAT_INTEGRATORS.iter().enumerate() {
+        assert_eq!(
+            r.f32_bits(3 * PIXELS),
+            bits3(&rust_sums[k]),
+            "{integrator:?} sums"
+        );
+    }
+    for (k, integrator) in SPLAT_INTEGRATORS.iter().enumerate() {
+        let rust: Vec<i64> = rust_splats[k].iter().flatten().copied().collect();
+        let c = r.i64s(3 * PIXELS);
+        let differ = c.iter().zip(&rust).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{integrator:?}: {differ} splat sums differ");
+        // Light lands as splats on most pixels, so that the comparison means something.
+        let splatted = rust_splats[k]
+            .iter()
+            .filter(|s| s.iter().any(|&c| c > 0))
+            .count();
+        assert!(
+            splatted > PIXELS / 2,
+            "{integrator:?}: {splatted} pixels splatted"
+        );
+    }
+    for (k, integrator) in SPLAT_INTEGRATORS.iter().enumerate() {
+        let rust: Vec<[f32; 3]> = rust_sums[k]
+            .iter()
+            .zip(&rust_splats[k])
+            .map(|(sum, s)| resolve_pixel(*sum, *s))
+            .collect();
+        assert_eq!(r.f32_bits(3 * PIXELS), bits3(&rust), "{integrator:?} image");
+    }
+    // The rendering threads ran on painted stacks of EMBER_STACK_BYTES; cornell.c refuses more
+    // than half of it, and the measurement must have seen at least the 60 KiB material table.
+    let header = std::fs::read_to_string(root.join("kernel/include/ember.h")).unwrap();
+    let stack_bytes: usize = header
+        .lines()
+        .find_map(|l| l.strip_prefix("#define EMBER_STACK_BYTES "))
+        .expect("EMBER_STACK_BYTES in ember.h")
+        .trim()
+        .parse()
+        .unwrap();
+    let used = r.u32() as usize;
+    eprintln!("cornell.c: a rendering thread used {used} of its {stack_bytes} stack bytes");
+    assert!(
+        used > 60 * 1024 && 2 * used <= stack_bytes,
+        "{used} of {stack_bytes}"
+    );
     assert_eq!(r.1, r.0.len(), "trailing bytes in the dump");
 
     // The scene compared has every material: each kind, smooth and rough conductors and
@@ -236,6 +306,9 @@ fn c_program_renders_bit_identically_to_the_rust_api() {
     let h = ember_determinism::hashes();
     assert_eq!(
         printed,
-        format!("render {:016x}\nbake {:016x}\n", h.render, h.bake)
+        format!(
+            "render {:016x}\nbake {:016x}\nsplat {:016x}\n",
+            h.render, h.bake, h.splat
+        )
     );
 }

@@ -19,15 +19,17 @@ fn golden(name: &str) -> u64 {
 #[test]
 fn determinism_scene_matches_the_golden_hashes() {
     let h = ember_determinism::hashes();
-    let (render, bake) = (golden("render"), golden("bake"));
+    let (render, bake, splat) = (golden("render"), golden("bake"), golden("splat"));
     assert!(
-        h.render == render && h.bake == bake,
+        h.render == render && h.bake == bake && h.splat == splat,
         "the determinism scene's images changed:\n  render {:016x} (golden {render:016x})\n  \
-         bake   {:016x} (golden {bake:016x})\nIf the change is intended, put the new hashes in \
-         tests/golden/determinism.txt in the same commit and say in its message why the images \
-         changed; then run scripts/determinism.sh to check every target agrees.",
+         bake   {:016x} (golden {bake:016x})\n  splat  {:016x} (golden {splat:016x})\nIf the \
+         change is intended, put the new hashes in tests/golden/determinism.txt in the same \
+         commit and say in its message why the images changed; then run \
+         scripts/determinism.sh to check every target agrees.",
         h.render,
-        h.bake
+        h.bake,
+        h.splat
     );
 }
 

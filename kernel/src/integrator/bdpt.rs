@@ -280,7 +280,7 @@ pub fn pdf_light_origin(scene: &SceneView<'_>, v: &Vertex) -> f32 {
 }
 
 /// The fixed-size subpaths of one BDPT sample, provided by the caller and reused from sample
-/// to sample (about 40 KiB: hosts keep one per worker thread).
+/// to sample (131 vertices of 188 bytes, about 24 KiB: hosts keep one per worker thread).
 #[derive(Clone, Debug)]
 pub struct BdptScratch {
     pub camera: [Vertex; CAMERA_PATH_VERTICES],

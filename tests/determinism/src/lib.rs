@@ -2,8 +2,10 @@
 //! rendered at 32×32 with every material of the kernel (diffuse walls, a Phong box, a mixture
 //! box, a smooth mirror, a rough metal panel, a glass box with one frosted face, a floor with a
 //! diffuse texture and a picture with a textured Phong material) by each path integrator,
-//! plus a bake of surface points on each of them with both bake estimators. The pixels and
-//! baked values are hashed bit for bit (FNV-1a over the little-endian bytes of each f32).
+//! by the light tracer and by BDPT with both MIS heuristics (their splats accumulated in
+//! fixed-size fixed-point buffers, [`SplatBuffer`]), plus a bake of surface points on each of
+//! them with both bake estimators. The pixels and baked values are hashed bit for bit (FNV-1a
+//! over the little-endian bytes of each f32).
 //!
 //! `#![no_std]` and allocation-free: the same code runs on the host (any thread count), on
 //! aarch64 under qemu, as a wasm32 module under Node.js and in the `no_std` check. The C API
@@ -15,12 +17,13 @@ use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
 use ember_kernel::integrator::{
-    bake_vertex, render_pixel, BakeEstimator, BakePoint, Integrator, PathSettings, PixelStats,
-    Shortcuts,
+    bake_vertex, render_pixel, BakeEstimator, BakePoint, BdptScratch, Integrator, MisHeuristic,
+    PathSettings, PixelStats, Shortcuts,
 };
 use ember_kernel::material::{PhongParams, Reflectance, Surface};
 use ember_kernel::sampler::DEFAULT_SEED;
 use ember_kernel::scene::{Material, SceneView};
+pub use ember_kernel::splat::SplatBuffer;
 use ember_kernel::texture::{Texture, Textures, NO_TEXTURE};
 use ember_kernel::{Rgb, Vec2, Vec3};
 
@@ -56,6 +59,15 @@ pub const INTEGRATORS: [Integrator; 3] = [
     Integrator::PathExplicit,
     Integrator::PathMis,
 ];
+/// The splatting integrators rendered (same film, samples and settings as the path tracers),
+/// in hashing order.
+pub const SPLAT_INTEGRATORS: [Integrator; 3] = [
+    Integrator::LightTracing,
+    Integrator::Bdpt(MisHeuristic::Power),
+    Integrator::Bdpt(MisHeuristic::Balance),
+];
+/// Pixels of the film: the entries of a splat buffer.
+pub const PIXELS: usize = WIDTH as usize * HEIGHT as usize;
 /// The bake estimators, in hashing order.
 pub const BAKE_ESTIMATORS: [BakeEstimator; 2] = [BakeEstimator::Mis, BakeEstimator::Explicit];
 
@@ -712,6 +724,59 @@ pub fn render_pixel_rgb(scene: &SceneView<'_>, integrator: Integrator, x: u32, y
     pixel(scene, &camera(), integrator, &RENDER_PATH, SPP, SEED, x, y)
 }
 
+/// Sample sums of the determinism render's pixel `(x, y)` with a splatting integrator of
+/// [`SPLAT_INTEGRATORS`] (what the C API's `ember_render_tile_splats` writes); its splats are
+/// added to `splats`. `scratch` holds BDPT's subpaths.
+#[must_use]
+pub fn render_pixel_sum(
+    scene: &SceneView<'_>,
+    integrator: Integrator,
+    x: u32,
+    y: u32,
+    scratch: &mut BdptScratch,
+    splats: &mut SplatBuffer<'_>,
+) -> [f32; 3] {
+    let stats = render_pixel(
+        integrator,
+        scene,
+        &camera(),
+        &RENDER_PATH,
+        SEED,
+        x,
+        y,
+        0,
+        SPP,
+        PixelStats::default(),
+        Some(scratch),
+        splats,
+    );
+    stats.sum.to_array()
+}
+
+/// A pixel of a splatting render from its sample sum and its (merged) splat sums: the kernel's
+/// [`ember_kernel::splat::resolve`] with [`SPP`], as every host and the C API compute it.
+#[must_use]
+pub fn resolve_pixel(sum: [f32; 3], splats: [i64; 3]) -> [f32; 3] {
+    ember_kernel::splat::resolve(Rgb::from_array(sum), splats, SPP).to_array()
+}
+
+/// Renders the whole film with a splatting integrator on the calling thread, pixel after
+/// pixel: the sample sums into `sums` and the splats added to `splats` (zero it first).
+pub fn render_splat_image(
+    scene: &SceneView<'_>,
+    integrator: Integrator,
+    sums: &mut [[f32; 3]; PIXELS],
+    splats: &mut [[i64; 3]; PIXELS],
+) {
+    let mut scratch = BdptScratch::default();
+    let mut buffer = SplatBuffer::new(WIDTH, HEIGHT, splats).expect("film-sized buffer");
+    for (i, sum) in sums.iter_mut().enumerate() {
+        let (x, y) = ((i % WIDTH as usize) as u32, (i / WIDTH as usize) as u32);
+        *sum = render_pixel_sum(scene, integrator, x, y, &mut scratch, &mut buffer);
+    }
+    assert_eq!(buffer.invalid, 0, "{integrator:?}: non-finite splats");
+}
+
 /// The baked value of point `i` of [`BAKE_POINTS`] with `estimator`.
 #[must_use]
 pub fn bake_point(scene: &SceneView<'_>, estimator: BakeEstimator, i: usize) -> [f32; 3] {
@@ -767,55 +832,93 @@ impl Fnv1a {
 /// The hashes the determinism checks compare.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Hashes {
-    /// All pixels of the three renders (implicit, explicit, MIS), row-major, RGB.
+    /// All pixels of the three path-traced renders (implicit, explicit, MIS), row-major, RGB.
     pub render: u64,
     /// The baked values (MIS, then explicit; points in order), RGB.
     pub bake: u64,
+    /// All pixels of the three splatting renders (light tracer, BDPT power, BDPT balance),
+    /// resolved (`(sum + splats) / spp`), row-major, RGB.
+    pub splat: u64,
 }
 
-/// Hashes of already computed images (`images[k]` row-major, of [`INTEGRATORS`]`[k]`) and
-/// bakes (`bakes[k][i]`, of [`BAKE_ESTIMATORS`]`[k]` at point `i`).
-#[must_use]
-pub fn hash_results(images: &[&[[f32; 3]]], bakes: &[&[[f32; 3]]]) -> Hashes {
-    let mut render = Fnv1a::default();
+fn hash_images(images: &[&[[f32; 3]]]) -> u64 {
+    let mut h = Fnv1a::default();
     for image in images {
         for px in *image {
-            render.write_f32s(px);
+            h.write_f32s(px);
         }
     }
-    let mut bake = Fnv1a::default();
-    for values in bakes {
-        for v in *values {
-            bake.write_f32s(v);
-        }
-    }
+    h.finish()
+}
+
+/// Hashes of already computed images (`images[k]` row-major, of [`INTEGRATORS`]`[k]`), bakes
+/// (`bakes[k][i]`, of [`BAKE_ESTIMATORS`]`[k]` at point `i`) and resolved splatting images
+/// (`splat_images[k]`, of [`SPLAT_INTEGRATORS`]`[k]`).
+#[must_use]
+pub fn hash_results(
+    images: &[&[[f32; 3]]],
+    bakes: &[&[[f32; 3]]],
+    splat_images: &[&[[f32; 3]]],
+) -> Hashes {
     Hashes {
-        render: render.finish(),
-        bake: bake.finish(),
+        render: hash_images(images),
+        bake: hash_images(bakes),
+        splat: hash_images(splat_images),
     }
 }
 
-/// Renders and bakes everything on the calling thread, hashing as it goes (no buffers).
+/// The hash of the path-traced renders ([`Hashes::render`]), on the calling thread, hashing
+/// as it goes (no buffers).
+#[must_use]
+pub fn render_hash(view: &SceneView<'_>) -> u64 {
+    let mut h = Fnv1a::default();
+    for integrator in INTEGRATORS {
+        for y in 0..HEIGHT {
+            for x in 0..WIDTH {
+                h.write_f32s(&render_pixel_rgb(view, integrator, x, y));
+            }
+        }
+    }
+    h.finish()
+}
+
+/// The hash of the bake ([`Hashes::bake`]).
+#[must_use]
+pub fn bake_hash(view: &SceneView<'_>) -> u64 {
+    let mut h = Fnv1a::default();
+    for estimator in BAKE_ESTIMATORS {
+        for i in 0..BAKE_POINTS.len() {
+            h.write_f32s(&bake_point(view, estimator, i));
+        }
+    }
+    h.finish()
+}
+
+/// The hash of the splatting renders ([`Hashes::splat`]), on the calling thread. They need
+/// the sums and splats of the whole film before the first pixel is final: fixed-size arrays
+/// (12 KiB of sums, 24 KiB of splats) and a BDPT scratch (24 KiB) on the stack, no allocation.
+#[must_use]
+pub fn splat_hash(view: &SceneView<'_>) -> u64 {
+    let mut h = Fnv1a::default();
+    let mut sums = [[0.0f32; 3]; PIXELS];
+    for integrator in SPLAT_INTEGRATORS {
+        let mut splats = [[0i64; 3]; PIXELS];
+        render_splat_image(view, integrator, &mut sums, &mut splats);
+        for (sum, s) in sums.iter().zip(&splats) {
+            h.write_f32s(&resolve_pixel(*sum, *s));
+        }
+    }
+    h.finish()
+}
+
+/// Renders and bakes everything on the calling thread.
 #[must_use]
 pub fn hashes() -> Hashes {
     let scene = Scene::new();
     let view = scene.view();
-    let mut render = Fnv1a::default();
-    for integrator in INTEGRATORS {
-        for y in 0..HEIGHT {
-            for x in 0..WIDTH {
-                render.write_f32s(&render_pixel_rgb(&view, integrator, x, y));
-            }
-        }
-    }
-    let mut bake = Fnv1a::default();
-    for estimator in BAKE_ESTIMATORS {
-        for i in 0..BAKE_POINTS.len() {
-            bake.write_f32s(&bake_point(&view, estimator, i));
-        }
-    }
     Hashes {
-        render: render.finish(),
-        bake: bake.finish(),
+        render: render_hash(&view),
+        bake: bake_hash(&view),
+        splat: splat_hash(&view),
     }
 }

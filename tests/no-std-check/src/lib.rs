@@ -15,19 +15,26 @@ extern crate std;
 
 use ember_kernel::bvh::max_nodes;
 
-/// Hash of the pixels of the determinism renders (implicit, explicit, MIS).
+/// Hash of the pixels of the determinism path-traced renders (implicit, explicit, MIS).
 // `no_mangle` counts as unsafe code (symbol clashes); the export needs its plain name.
 #[allow(unsafe_code)]
 #[no_mangle]
 pub extern "C" fn ember_nostd_render_hash() -> u64 {
-    ember_determinism::hashes().render
+    ember_determinism::render_hash(&ember_determinism::Scene::new().view())
 }
 
 /// Hash of the determinism bake.
 #[allow(unsafe_code)]
 #[no_mangle]
 pub extern "C" fn ember_nostd_bake_hash() -> u64 {
-    ember_determinism::hashes().bake
+    ember_determinism::bake_hash(&ember_determinism::Scene::new().view())
+}
+
+/// Hash of the determinism splatting renders (light tracer, BDPT power and balance).
+#[allow(unsafe_code)]
+#[no_mangle]
+pub extern "C" fn ember_nostd_splat_hash() -> u64 {
+    ember_determinism::splat_hash(&ember_determinism::Scene::new().view())
 }
 
 /// BVH node capacity for `triangles` triangles (a kernel call without floats).
