@@ -4,7 +4,7 @@
 
 use crate::image::Image;
 use ember_kernel::integrator::BdptSink;
-use ember_kernel::splat::{from_fixed, pixel_of, to_fixed, SplatSink};
+use ember_kernel::splat::{pixel_of, to_fixed, SplatSink};
 use ember_kernel::Rgb;
 use glam::Vec2;
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
@@ -104,20 +104,11 @@ impl SplatSink for &AtomicSplats {
 
 impl BdptSink for &AtomicSplats {}
 
-/// The value of a pixel from the running f32 sum of its own samples and the fixed-point sum
-/// of the splats it received, over `spp` samples: `(own + splats) / spp` in f32, the splats
-/// converted once from their exact integer sum. Every host (single render, merged shards,
-/// interrupted render) resolves pixels with this function, so they agree bit for bit.
-#[inline]
-#[must_use]
-pub fn resolve(own: Rgb, splats: [i64; 3], spp: u32) -> Rgb {
-    let s = Rgb::new(
-        from_fixed(splats[0]) as f32,
-        from_fixed(splats[1]) as f32,
-        from_fixed(splats[2]) as f32,
-    );
-    (own + s) / spp as f32
-}
+/// The value of a pixel from the running f32 sum of its own samples and the fixed-point sum of
+/// the splats it received, over `spp` samples: the kernel's [`ember_kernel::splat::resolve`],
+/// which every host (single render, merged shards, interrupted render, the C API) uses, so
+/// that they agree bit for bit.
+pub use ember_kernel::splat::resolve;
 
 /// The per-strategy images of BDPT's `--strategies`: for every `(s, t)` up to a depth, the
 /// unweighted contributions and the MIS-weighted ones, each a fixed-point film (so that
@@ -270,6 +261,7 @@ mod tests {
         assert_eq!(a.snapshot()[0], [0; 3]);
         let px = resolve(Rgb::splat(1.0), a.snapshot()[1], 2);
         assert!((px.x - (1.0 + 3.350001) / 2.0).abs() < 1e-6, "{px}");
+        assert_eq!(px, resolve(Rgb::splat(1.0), b.snapshot()[1], 2));
         a.add(Vec2::new(0.5, 0.5), Rgb::new(f32::NAN, 0.0, 0.0));
         assert_eq!(a.invalid(), 1);
     }
