@@ -110,15 +110,17 @@ pub fn render(scene: &SceneView<'_>, camera: &Camera, s: &RenderSettings) -> Ren
     render_interruptible(scene, camera, s, &AtomicBool::new(false))
 }
 
-/// Samples per pixel in each pass: about 16 passes, so an interrupt loses at most ~1/16 of the
-/// work, and at least 1 sample.
-fn pass_size(spp: u32) -> u32 {
+/// Samples per pixel in each pass of `ember render`: about 16 passes, so an interrupt loses at
+/// most ~1/16 of the work, and at least 1 sample.
+#[must_use]
+pub fn pass_size(spp: u32) -> u32 {
     spp.div_ceil(16).max(1)
 }
 
 /// Like [`render`], but checks `stop` between tiles: once it is set, the pass in flight is
 /// abandoned and the image holds the passes completed so far (`Rendered::spp` says how many
-/// samples; 0 if not even one pass finished).
+/// samples; 0 if not even one pass finished). This is [`Progressive`] driven pass after pass
+/// up to `s.spp`, the same code the interactive view runs.
 ///
 /// # Panics
 /// If the rayon thread pool cannot be created.
@@ -130,20 +132,9 @@ pub fn render_interruptible(
     stop: &AtomicBool,
 ) -> Rendered {
     let start = std::time::Instant::now();
-    let (w, h) = (camera.width, camera.height);
-    let tile = s.tile.max(1);
-    let tiles: Vec<(u32, u32)> = tiles(w, h, tile)
-        .into_iter()
-        .enumerate()
-        .filter(|(t, _)| s.shard.owns(*t))
-        .map(|(_, corner)| corner)
-        .collect();
+    let mut progressive = Progressive::new(*camera, s);
     let bar = if s.progress {
-        let pixels: u64 = tiles
-            .iter()
-            .map(|&(x0, y0)| u64::from(((x0 + tile).min(w) - x0) * ((y0 + tile).min(h) - y0)))
-            .sum();
-        let b = ProgressBar::new(pixels * u64::from(s.spp));
+        let b = ProgressBar::new(progressive.pixels() * u64::from(s.spp));
         b.set_style(
             ProgressStyle::with_template(
                 "{spinner} [{elapsed_precise}] {wide_bar} {percent}% of samples, ETA {eta}",
@@ -154,25 +145,151 @@ pub fn render_interruptible(
     } else {
         ProgressBar::hidden()
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(s.threads)
-        .build()
-        .expect("cannot create the rayon thread pool");
-    // Running sums in tile order: tile i owns the slice starting at its first pixel index.
-    let tile_pixels = |(x0, y0): (u32, u32)| ((x0 + tile).min(w) - x0) * ((y0 + tile).min(h) - y0);
-    let mut sums: Vec<Vec<PixelStats>> = tiles
-        .iter()
-        .map(|&t| vec![PixelStats::default(); tile_pixels(t) as usize])
-        .collect();
-    let mut done = 0u32;
-    while done < s.spp && !stop.load(Ordering::Relaxed) {
-        let count = pass_size(s.spp).min(s.spp - done);
-        let pass: Option<Vec<Vec<PixelStats>>> = pool.install(|| {
+    while progressive.spp() < s.spp && !stop.load(Ordering::Relaxed) {
+        let count = pass_size(s.spp).min(s.spp - progressive.spp());
+        let completed =
+            progressive.render_pass(scene, count, &|| stop.load(Ordering::Relaxed), &|samples| {
+                bar.inc(samples)
+            });
+        if !completed {
+            break;
+        }
+    }
+    bar.finish_and_clear();
+    let mut r = progressive.snapshot();
+    r.seconds = start.elapsed().as_secs_f64();
+    r
+}
+
+/// A render in progress: per-pixel running sums ([`PixelStats`]) of samples `0..spp` of one
+/// camera and settings, extended pass after pass. This is the only place the host calls the
+/// kernel's per-pixel entry point: `ember render` ([`render_interruptible`]) and the
+/// interactive view of `ember-view` both drive it, so the view's accumulation at N spp is
+/// `ember render`'s image at N spp by construction.
+///
+/// Each pass renders samples `spp..spp + count` of every pixel of the shard, tile by tile on the
+/// rayon pool, and adds them in sample order to the pixel's sums (see
+/// [`ember_kernel::integrator::render_pixel`]), so any sequence of passes that reaches N spp
+/// gives the same bits as one pass of N. A pass that is stopped is dropped whole: every pixel
+/// always holds the same number of samples.
+#[derive(Debug)]
+pub struct Progressive {
+    camera: Camera,
+    settings: RenderSettings,
+    /// Top-left corners of the shard's tiles, row-major.
+    tiles: Vec<(u32, u32)>,
+    /// Running sums in tile order: `sums[i]` holds tile `i`'s pixels, row-major in the tile.
+    sums: Vec<Vec<PixelStats>>,
+    spp: u32,
+    /// Wall time of the completed passes since the last (re)start.
+    seconds: f64,
+    pool: rayon::ThreadPool,
+}
+
+impl Progressive {
+    /// An empty accumulation (0 spp) of `camera` (whose size is the film's) with `settings`;
+    /// `settings.spp` is not used (the caller decides how many passes of which size), and
+    /// `settings.progress` neither.
+    ///
+    /// # Panics
+    /// If the rayon thread pool (`settings.threads`) cannot be created.
+    #[must_use]
+    pub fn new(camera: Camera, settings: &RenderSettings) -> Self {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(settings.threads)
+            .thread_name(|i| format!("ember-render-{i}"))
+            .build()
+            .expect("cannot create the rayon thread pool");
+        let mut p = Self {
+            camera,
+            settings: *settings,
+            tiles: Vec::new(),
+            sums: Vec::new(),
+            spp: 0,
+            seconds: 0.0,
+            pool,
+        };
+        p.restart(camera, settings);
+        p
+    }
+
+    /// Drops the accumulation and starts again at 0 spp with another camera or settings (the
+    /// thread pool is kept: `settings.threads` is not read again).
+    pub fn restart(&mut self, camera: Camera, settings: &RenderSettings) {
+        let tile = settings.tile.max(1);
+        let (w, h) = (camera.width, camera.height);
+        self.tiles = tiles(w, h, tile)
+            .into_iter()
+            .enumerate()
+            .filter(|(t, _)| settings.shard.owns(*t))
+            .map(|(_, corner)| corner)
+            .collect();
+        let tile_pixels =
+            |(x0, y0): (u32, u32)| ((x0 + tile).min(w) - x0) * ((y0 + tile).min(h) - y0);
+        self.sums = self
+            .tiles
+            .iter()
+            .map(|&t| vec![PixelStats::default(); tile_pixels(t) as usize])
+            .collect();
+        self.camera = camera;
+        self.settings = *settings;
+        self.spp = 0;
+        self.seconds = 0.0;
+    }
+
+    /// Samples per pixel accumulated.
+    #[must_use]
+    pub fn spp(&self) -> u32 {
+        self.spp
+    }
+
+    #[must_use]
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    #[must_use]
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// Pixels this accumulation renders (the shard's).
+    #[must_use]
+    pub fn pixels(&self) -> u64 {
+        self.sums.iter().map(|t| t.len() as u64).sum()
+    }
+
+    /// Wall time of the passes completed since the last (re)start, in seconds.
+    #[must_use]
+    pub fn seconds(&self) -> f64 {
+        self.seconds
+    }
+
+    /// Renders samples `spp..spp + count` of every pixel and adds them to the sums. `stop` is
+    /// checked before each tile: when it returns true the pass is abandoned, the sums stay as
+    /// they were, and the result is false. `progress` is told the samples of each finished
+    /// tile. The scene must be the one the previous passes rendered.
+    pub fn render_pass(
+        &mut self,
+        scene: &SceneView<'_>,
+        count: u32,
+        stop: &(dyn Fn() -> bool + Sync),
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> bool {
+        if count == 0 {
+            return true;
+        }
+        let start = std::time::Instant::now();
+        let (camera, s, first) = (&self.camera, &self.settings, self.spp);
+        let (w, h, tile) = (camera.width, camera.height, s.tile.max(1));
+        let tiles = &self.tiles;
+        let sums = &self.sums;
+        let pass: Option<Vec<Vec<PixelStats>>> = self.pool.install(|| {
             tiles
                 .par_iter()
                 .zip(sums.par_iter())
                 .map(|(&(x0, y0), acc)| {
-                    if stop.load(Ordering::Relaxed) {
+                    if stop() {
                         return None;
                     }
                     let mut out = Vec::with_capacity(acc.len());
@@ -187,56 +304,121 @@ pub fn render_interruptible(
                                 s.seed,
                                 x,
                                 y,
-                                done,
+                                first,
                                 count,
                                 acc[k],
                             ));
                             k += 1;
                         }
                     }
-                    bar.inc(u64::from(count) * out.len() as u64);
+                    progress(u64::from(count) * out.len() as u64);
                     Some(out)
                 })
                 .collect()
         });
         // An interrupted pass is dropped whole: every pixel keeps the same sample count.
-        let Some(pass) = pass else { break };
-        sums = pass;
-        done += count;
+        let Some(pass) = pass else { return false };
+        self.sums = pass;
+        self.spp += count;
+        self.seconds += start.elapsed().as_secs_f64();
+        true
     }
-    bar.finish_and_clear();
 
-    let mut image = Image::new(w, h);
-    let mut variance = Image::new(w, h);
-    let mut invalid = 0u64;
-    let mut rays = 0u64;
-    let n = done as f32;
-    for (&(x0, y0), stats) in tiles.iter().zip(&sums) {
-        let mut it = stats.iter();
-        for y in y0..(y0 + tile).min(h) {
-            for x in x0..(x0 + tile).min(w) {
-                let Some(p) = it.next() else { continue };
-                let i = (y * w + x) as usize;
-                if done > 0 {
-                    let mean = p.sum / n;
-                    image.pixels[i] = mean;
-                    variance.pixels[i] = if done > 1 {
-                        ((p.sum_sq - p.sum * mean) / (n - 1.0)).max(Rgb::ZERO) / n
-                    } else {
-                        Rgb::ZERO
-                    };
-                }
-                invalid += u64::from(p.invalid);
-                rays += p.rays;
+    /// A quick low-resolution look for a moving camera: sample 0 of the top-left pixel of
+    /// every `block × block` block (a quarter of the pixels for 2), copied over its block.
+    /// Each value is exactly that pixel's first sample in a full render. `stop` is checked
+    /// before each row of blocks; `None` if it stopped. The accumulation is not changed.
+    #[must_use]
+    pub fn preview(
+        &self,
+        scene: &SceneView<'_>,
+        block: u32,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Image> {
+        let block = block.max(1);
+        let (camera, s) = (&self.camera, &self.settings);
+        let (w, h) = (camera.width, camera.height);
+        let rows: Option<Vec<Vec<Rgb>>> = self.pool.install(|| {
+            (0..h.div_ceil(block))
+                .into_par_iter()
+                .map(|by| {
+                    if stop() {
+                        return None;
+                    }
+                    let y = by * block;
+                    Some(
+                        (0..w.div_ceil(block))
+                            .map(|bx| {
+                                let x = bx * block;
+                                let p = render_pixel(
+                                    s.integrator,
+                                    scene,
+                                    camera,
+                                    &s.path,
+                                    s.seed,
+                                    x,
+                                    y,
+                                    0,
+                                    1,
+                                    PixelStats::default(),
+                                );
+                                p.sum
+                            })
+                            .collect(),
+                    )
+                })
+                .collect()
+        });
+        let rows = rows?;
+        let mut image = Image::new(w, h);
+        for y in 0..h {
+            let row = &rows[(y / block) as usize];
+            for x in 0..w {
+                image.pixels[(y * w + x) as usize] = row[(x / block) as usize];
             }
         }
+        Some(image)
     }
-    Rendered {
-        image,
-        variance,
-        spp: done,
-        invalid_samples: invalid,
-        rays,
-        seconds: start.elapsed().as_secs_f64(),
+
+    /// The image so far: mean and variance of the mean per pixel (pixels outside the shard and
+    /// every pixel at 0 spp are 0), invalid samples and rays; `seconds` is [`Self::seconds`].
+    #[must_use]
+    pub fn snapshot(&self) -> Rendered {
+        let (w, h) = (self.camera.width, self.camera.height);
+        let tile = self.settings.tile.max(1);
+        let done = self.spp;
+        let mut image = Image::new(w, h);
+        let mut variance = Image::new(w, h);
+        let mut invalid = 0u64;
+        let mut rays = 0u64;
+        let n = done as f32;
+        for (&(x0, y0), stats) in self.tiles.iter().zip(&self.sums) {
+            let mut it = stats.iter();
+            for y in y0..(y0 + tile).min(h) {
+                for x in x0..(x0 + tile).min(w) {
+                    let Some(p) = it.next() else { continue };
+                    let i = (y * w + x) as usize;
+                    if done > 0 {
+                        let mean = p.sum / n;
+                        image.pixels[i] = mean;
+                        variance.pixels[i] = if done > 1 {
+                            ((p.sum_sq - p.sum * mean) / (n - 1.0)).max(Rgb::ZERO) / n
+                        } else {
+                            Rgb::ZERO
+                        };
+                    }
+                    invalid += u64::from(p.invalid);
+                    rays += p.rays;
+                }
+            }
+        }
+        Rendered {
+            image,
+            variance,
+            spp: done,
+            invalid_samples: invalid,
+            rays,
+            seconds: self.seconds,
+        }
     }
 }
