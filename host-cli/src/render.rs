@@ -214,23 +214,31 @@ impl Progressive {
     }
 
     /// Drops the accumulation and starts again at 0 spp with another camera or settings (the
-    /// thread pool is kept: `settings.threads` is not read again).
+    /// thread pool is kept: `settings.threads` is not read again). Cheap when the film, tiles
+    /// and shard stay the same (an interactive camera move): the old sums are not cleared,
+    /// the next pass starts from zero instead.
     pub fn restart(&mut self, camera: Camera, settings: &RenderSettings) {
         let tile = settings.tile.max(1);
         let (w, h) = (camera.width, camera.height);
-        self.tiles = tiles(w, h, tile)
-            .into_iter()
-            .enumerate()
-            .filter(|(t, _)| settings.shard.owns(*t))
-            .map(|(_, corner)| corner)
-            .collect();
-        let tile_pixels =
-            |(x0, y0): (u32, u32)| ((x0 + tile).min(w) - x0) * ((y0 + tile).min(h) - y0);
-        self.sums = self
-            .tiles
-            .iter()
-            .map(|&t| vec![PixelStats::default(); tile_pixels(t) as usize])
-            .collect();
+        let same_layout = !self.sums.is_empty()
+            && (w, h) == (self.camera.width, self.camera.height)
+            && tile == self.settings.tile.max(1)
+            && settings.shard == self.settings.shard;
+        if !same_layout {
+            self.tiles = tiles(w, h, tile)
+                .into_iter()
+                .enumerate()
+                .filter(|(t, _)| settings.shard.owns(*t))
+                .map(|(_, corner)| corner)
+                .collect();
+            let tile_pixels =
+                |(x0, y0): (u32, u32)| ((x0 + tile).min(w) - x0) * ((y0 + tile).min(h) - y0);
+            self.sums = self
+                .tiles
+                .iter()
+                .map(|&t| vec![PixelStats::default(); tile_pixels(t) as usize])
+                .collect();
+        }
         self.camera = camera;
         self.settings = *settings;
         self.spp = 0;
@@ -296,6 +304,13 @@ impl Progressive {
                     let mut k = 0;
                     for y in y0..(y0 + tile).min(h) {
                         for x in x0..(x0 + tile).min(w) {
+                            // At 0 spp the sums may hold a previous accumulation (see
+                            // `restart`): the first pass starts from zero.
+                            let sums = if first == 0 {
+                                PixelStats::default()
+                            } else {
+                                acc[k]
+                            };
                             out.push(render_pixel(
                                 s.integrator,
                                 scene,
@@ -306,7 +321,7 @@ impl Progressive {
                                 y,
                                 first,
                                 count,
-                                acc[k],
+                                sums,
                             ));
                             k += 1;
                         }
@@ -392,7 +407,9 @@ impl Progressive {
         let mut invalid = 0u64;
         let mut rays = 0u64;
         let n = done as f32;
-        for (&(x0, y0), stats) in self.tiles.iter().zip(&self.sums) {
+        // At 0 spp the sums may be a previous accumulation's (see `restart`).
+        let sums: &[Vec<PixelStats>] = if done == 0 { &[] } else { &self.sums };
+        for (&(x0, y0), stats) in self.tiles.iter().zip(sums) {
             let mut it = stats.iter();
             for y in y0..(y0 + tile).min(h) {
                 for x in x0..(x0 + tile).min(w) {

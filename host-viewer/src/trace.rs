@@ -4,9 +4,11 @@
 //!
 //! The worker never touches wgpu or the window: the event loop only copies the latest frame
 //! into a texture. A camera or integrator change bumps a generation counter that the renderer
-//! checks before every tile (and every row of the preview), so work for an old view is dropped
-//! within one tile; the accumulation then restarts with a one-sample preview at a quarter of
-//! the pixels ([`Progressive::preview`], every 2×2 block) before the full-resolution passes.
+//! checks before every tile, so a pass for an old view is dropped within one tile; the
+//! accumulation then restarts with a one-sample preview at a quarter of the pixels
+//! ([`Progressive::preview`], every 2×2 block; coarser blocks when that is too slow for
+//! [`PREVIEW_SECONDS`]) before the full-resolution passes. A preview in flight is finished
+//! (it is what a moving view shows) and the next one starts from the newest camera.
 //!
 //! Because the passes are [`Progressive::render_pass`] calls, the mean of a frame at N spp is
 //! bit for bit the image `ember render` writes at N spp with the same camera, seed and
@@ -23,8 +25,14 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-/// Side of the blocks of the moving-camera preview: one sample per 2×2 block.
+/// Side of the blocks of the moving-camera preview: one sample per 2×2 block, more when a
+/// preview takes longer than [`PREVIEW_SECONDS`] (up to [`MAX_PREVIEW_BLOCK`]).
 pub const PREVIEW_BLOCK: u32 = 2;
+pub const MAX_PREVIEW_BLOCK: u32 = 16;
+
+/// A preview should take at most this long, so that a moving view shows ~15 frames a second:
+/// slower ones double the block side of the next, faster than a quarter of it halve it.
+pub const PREVIEW_SECONDS: f64 = 1.0 / 15.0;
 
 /// A pass aims at this wall time, so the view updates a few times a second once the camera is
 /// still (the first pass is always one sample).
@@ -97,6 +105,8 @@ pub struct TraceFrame {
     pub rgba: Vec<[f32; 4]>,
     /// Samples per pixel in the image; 0 for a preview.
     pub spp: u32,
+    /// Side of the blocks of a preview (one sample each); 1 for an accumulation.
+    pub block: u32,
     pub target_spp: u32,
     pub integrator: Integrator,
     pub camera: ViewCamera,
@@ -307,6 +317,7 @@ fn run(setup: &TraceSetup, shared: &Shared, notify: &dyn Fn()) {
     let mut progressive: Option<Progressive> = None;
     let mut current = 0u64;
     let mut started = Instant::now();
+    let mut block = PREVIEW_BLOCK;
     loop {
         let request = {
             let mut c = shared.control();
@@ -344,13 +355,23 @@ fn run(setup: &TraceSetup, shared: &Shared, notify: &dyn Fn()) {
             current = generation;
             started = Instant::now();
             let p = progressive.as_ref().expect("created above");
-            if let Some(image) = p.preview(&view, PREVIEW_BLOCK, &stop) {
+            // A preview is finished even when the camera moves on meanwhile: it is the frame
+            // that lets the view follow the mouse (abandoning it for every mouse event would
+            // show nothing until the mouse stops).
+            let paused =
+                || !shared.active.load(Ordering::Relaxed) || shared.quit.load(Ordering::Relaxed);
+            let t0 = Instant::now();
+            if let Some(image) = p.preview(&view, block, &paused) {
+                let seconds = t0.elapsed().as_secs_f64();
                 let rgba = image.pixels.iter().map(|c| [c.x, c.y, c.z, -1.0]).collect();
-                publish(
-                    shared,
-                    notify,
-                    frame(&request, setup, rgba, 0, 0.0, started, 0),
-                );
+                let mut f = frame(&request, setup, rgba, 0, 0.0, started, 0);
+                f.block = block;
+                publish(shared, notify, f);
+                if seconds > PREVIEW_SECONDS && block < MAX_PREVIEW_BLOCK {
+                    block *= 2;
+                } else if seconds < PREVIEW_SECONDS / 4.0 && block > PREVIEW_BLOCK {
+                    block /= 2;
+                }
             }
             continue;
         }
@@ -399,6 +420,7 @@ fn frame(
         height: setup.height,
         rgba,
         spp,
+        block: 1,
         target_spp: setup.target_spp,
         integrator: request.integrator,
         camera: request.camera,
@@ -409,8 +431,9 @@ fn frame(
 }
 
 fn publish(shared: &Shared, notify: &dyn Fn(), frame: TraceFrame) {
-    // A frame of a view that is no longer wanted is not shown.
-    if shared.generation.load(Ordering::Relaxed) != frame.generation {
+    // An accumulation of a view that is no longer wanted is not shown; a preview is (it is
+    // the newest look at a moving camera).
+    if !frame.is_preview() && shared.generation.load(Ordering::Relaxed) != frame.generation {
         return;
     }
     *shared

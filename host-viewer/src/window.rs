@@ -230,9 +230,9 @@ enum Mode {
 /// Responsiveness of the path-traced view, printed when the window closes.
 #[derive(Debug, Default)]
 struct Stats {
-    /// The earliest camera change not yet answered by a new frame.
-    pending_move: Option<Instant>,
-    /// Camera change → first new frame of a later view, in seconds.
+    /// Camera changes (generation, time) not yet on screen.
+    pending: std::collections::VecDeque<(u64, Instant)>,
+    /// Camera change → first new frame of that view or a later one, in seconds.
     latencies: Vec<f64>,
     /// Current run of camera inputs (first, last).
     moving: Option<(Instant, Instant)>,
@@ -243,8 +243,8 @@ struct Stats {
 }
 
 impl Stats {
-    fn camera_moved(&mut self, now: Instant) {
-        self.pending_move.get_or_insert(now);
+    fn camera_moved(&mut self, generation: u64, now: Instant) {
+        self.pending.push_back((generation, now));
         self.moving = match self.moving {
             Some((start, last)) if now.duration_since(last) < MOVING_TAIL => Some((start, now)),
             Some((start, last)) => {
@@ -256,8 +256,12 @@ impl Stats {
     }
 
     fn frame_presented(&mut self, now: Instant, frame: &TraceFrame) {
-        if let Some(t) = self.pending_move.take() {
+        while let Some(&(g, t)) = self.pending.front() {
+            if g > frame.generation {
+                break;
+            }
             self.latencies.push(now.duration_since(t).as_secs_f64());
+            self.pending.pop_front();
         }
         if let Some((_, last)) = self.moving {
             if now.duration_since(last) <= MOVING_TAIL {
@@ -282,7 +286,7 @@ impl Stats {
             let mut l = self.latencies.clone();
             l.sort_by(f64::total_cmp);
             parts.push(format!(
-                "{} camera moves, first new frame after a move in {:.0} ms median ({:.0} ms max), {:.1} new frames/s while moving",
+                "{} camera changes, each on screen (first frame of that view or a later one) after {:.0} ms median ({:.0} ms max), {:.1} new frames/s while moving",
                 l.len(),
                 1e3 * l[l.len() / 2],
                 1e3 * l[l.len() - 1],
@@ -484,7 +488,7 @@ impl App {
             .as_ref()
             .map_or(0, |t| t.setup.target_spp);
         let (spp, state, rate, elapsed) = match &self.shown {
-            Some(f) if f.generation == self.requested => (
+            Some(f) if f.generation == self.requested || f.is_preview() => (
                 f.spp,
                 if f.is_preview() {
                     " (preview)"
@@ -558,7 +562,7 @@ impl App {
         let generation = w.request(self.camera, self.integrator);
         if generation != self.requested {
             self.requested = generation;
-            self.stats.camera_moved(Instant::now());
+            self.stats.camera_moved(generation, Instant::now());
         }
     }
 
@@ -641,11 +645,7 @@ impl App {
             self.frame_ms = Some(self.frame_ms.map_or(ms, |old| 0.8 * old + 0.2 * ms));
         } else if self.fresh {
             self.fresh = false;
-            if let Some(f) = self
-                .shown
-                .as_ref()
-                .filter(|f| f.generation == self.requested)
-            {
+            if let Some(f) = &self.shown {
                 self.stats.frame_presented(Instant::now(), f);
             }
         }
@@ -668,7 +668,13 @@ impl App {
     fn frame_ready(&mut self) {
         let Some(w) = &self.worker else { return };
         let Some(frame) = w.take_frame() else { return };
-        if frame.generation != self.requested {
+        // The current view's frames, and previews of a camera on the way to it (newer than
+        // what is shown) while it moves.
+        let newer = self
+            .shown
+            .as_ref()
+            .is_none_or(|s| frame.generation > s.generation);
+        if frame.generation != self.requested && !(frame.is_preview() && newer) {
             return;
         }
         if let Some(g) = &self.state {
@@ -893,10 +899,11 @@ mod tests {
         let mut s = Stats::default();
         let ms = Duration::from_millis;
         for i in 0..10 {
-            s.camera_moved(t0 + ms(20 * i));
+            s.camera_moved(i + 2, t0 + ms(20 * i));
         }
-        let frame = |spp| TraceFrame {
-            generation: 1,
+        let frame = |generation, spp| TraceFrame {
+            generation,
+            block: 1,
             width: 1,
             height: 1,
             rgba: vec![[0.0; 4]],
@@ -913,20 +920,24 @@ mod tests {
             elapsed: ms(1),
             invalid_samples: 0,
         };
-        s.frame_presented(t0 + ms(30), &frame(0));
-        s.frame_presented(t0 + ms(150), &frame(0));
-        s.frame_presented(t0 + ms(1000), &frame(2));
+        // A preview of the first move (generation 2) at 30 ms, one of the sixth (7) at 150 ms,
+        // the last view's first pass at 1 s.
+        s.frame_presented(t0 + ms(30), &frame(2, 0));
+        s.frame_presented(t0 + ms(150), &frame(7, 0));
+        s.frame_presented(t0 + ms(1000), &frame(11, 2));
         s.finish();
-        // Moves from 0 to 180 ms (+100 ms tail); two frames within it; the first 30 ms after
-        // the first move.
+        // Moves from 0 to 180 ms (+100 ms tail); two frames within it.
         assert!(
             (s.moving_seconds - 0.28).abs() < 1e-6,
             "{}",
             s.moving_seconds
         );
         assert_eq!(s.moving_frames, 2);
-        assert_eq!(s.latencies.len(), 1);
-        assert!((s.latencies[0] - 0.03).abs() < 1e-6);
+        let want = [30, 130, 110, 90, 70, 50, 880, 860, 840, 820];
+        assert_eq!(s.latencies.len(), want.len());
+        for (l, w) in s.latencies.iter().zip(want) {
+            assert!((l - f64::from(w) / 1e3).abs() < 1e-6, "{:?}", s.latencies);
+        }
         assert_eq!(s.rate, Some((5.0, 2)));
         assert!(s.summary(Some(ms(3))).unwrap().contains("stopped 3.0 ms"));
     }
