@@ -50,9 +50,8 @@ fn ember_render_draws_gi_scenes_through_the_viewer() {
 fn cornell_copy(dir: &TempDir) -> std::path::PathBuf {
     let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/cornell-box");
     std::fs::create_dir_all(dir.path().join("mesh")).unwrap();
-    for f in ["cornell_box_gi.toml"] {
-        std::fs::copy(data.join(f), dir.path().join(f)).unwrap();
-    }
+    let toml = "cornell_box_gi.toml";
+    std::fs::copy(data.join(toml), dir.path().join(toml)).unwrap();
     for e in std::fs::read_dir(data.join("mesh")).unwrap().flatten() {
         std::fs::copy(e.path(), dir.path().join("mesh").join(e.file_name())).unwrap();
     }

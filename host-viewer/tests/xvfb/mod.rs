@@ -281,6 +281,15 @@ impl<'a> Viewer<'a> {
             }
             std::thread::sleep(Duration::from_millis(100));
         }
+        // Focus the window once, and let it see the focus change: a key sent in the same
+        // moment as the focus (from PointerRoot, Xvfb's initial focus) is dropped.
+        let o = x.run("xdotool", &["windowfocus", "--sync", &v.window]);
+        assert!(
+            o.status.success(),
+            "xdotool windowfocus: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        std::thread::sleep(Duration::from_millis(300));
         v
     }
 
