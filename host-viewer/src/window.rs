@@ -238,6 +238,8 @@ struct Stats {
     moving: Option<(Instant, Instant)>,
     moving_seconds: f64,
     moving_frames: u64,
+    /// Block sides of the previews shown.
+    preview_blocks: Vec<u32>,
     /// Samples per second and spp of the newest completed pass.
     rate: Option<(f64, u32)>,
 }
@@ -268,7 +270,9 @@ impl Stats {
                 self.moving_frames += 1;
             }
         }
-        if !frame.is_preview() {
+        if frame.is_preview() {
+            self.preview_blocks.push(frame.block);
+        } else {
             self.rate = Some((frame.samples_per_second, frame.spp));
         }
     }
@@ -291,6 +295,20 @@ impl Stats {
                 1e3 * l[l.len() / 2],
                 1e3 * l[l.len() - 1],
                 self.moving_frames as f64 / self.moving_seconds.max(1e-9)
+            ));
+        }
+        if !self.preview_blocks.is_empty() {
+            let mut b = self.preview_blocks.clone();
+            b.sort_unstable();
+            parts.push(format!(
+                "{} previews of one sample per {}x{} to {}x{} pixels (median {}x{})",
+                b.len(),
+                b[0],
+                b[0],
+                b[b.len() - 1],
+                b[b.len() - 1],
+                b[b.len() / 2],
+                b[b.len() / 2]
             ));
         }
         if let Some((rate, spp)) = self.rate {
