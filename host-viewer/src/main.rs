@@ -58,7 +58,8 @@ impl From<IntegratorArg> for Integrator {
         --headless writes one baked frame of a gi scene (EXR + PNG) instead of opening a window."
 )]
 struct Cli {
-    /// TinyRender scene file (.toml) with `realtime = true, type = "gi"`.
+    /// TinyRender scene file (.toml): a real-time `gi` scene (baked view; P path-traces) or an
+    /// offline `path` scene (path-traced view).
     scene: PathBuf,
     /// Render one frame offscreen and write it (EXR, linear, and a PNG preview beside it)
     /// instead of opening a window.

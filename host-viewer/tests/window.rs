@@ -239,6 +239,7 @@ fn camera_moves_restart_the_accumulation_and_closing_stops_the_workers_promptly(
     let x = Xvfb::start();
     let (w, h) = (W.to_string(), H.to_string());
     // A target that is never reached during the test.
+    let out = tmp.0.join("saved.exr");
     let mut v = Viewer::start(
         &x,
         &[
@@ -249,6 +250,8 @@ fn camera_moves_restart_the_accumulation_and_closing_stops_the_workers_promptly(
             &h,
             "--spp",
             "1000000",
+            "-o",
+            out.to_str().unwrap(),
         ],
     );
     let spp = |t: &str| title_spp(t).map_or(0, |(n, _)| n);
@@ -262,6 +265,30 @@ fn camera_moves_restart_the_accumulation_and_closing_stops_the_workers_promptly(
         "exposure restarted the accumulation: {t}"
     );
     let shot = v.screenshot(&tmp.0);
+
+    // O in the middle of the accumulation writes --output: ember render's image at whatever
+    // spp the view had reached, bit for bit.
+    v.key(&["o"]);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let saved_spp = loop {
+        let err = v.stderr();
+        if let Some(line) = err
+            .lines()
+            .find(|l| l.contains("wrote ") && l.contains("saved.exr"))
+        {
+            let n = line.rsplit('(').next().unwrap().trim_end_matches(" spp)");
+            break n.parse::<u32>().unwrap_or_else(|_| panic!("{line}"));
+        }
+        assert!(Instant::now() < deadline, "O wrote nothing: {err}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(saved_spp >= 16, "{saved_spp}");
+    assert_eq!(
+        read_exr(&out).unwrap(),
+        ember_render(&toml, None, false, saved_spp, DEFAULT_SEED),
+        "the accumulation at {saved_spp} spp"
+    );
+    assert!(out.with_extension("png").is_file());
 
     // A mouse drag: the count drops (to the preview or the first passes), then grows again.
     let s1 = spp(&v.title());
