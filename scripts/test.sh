@@ -15,9 +15,11 @@ if [ ! -d "$EMBER_TINYRENDER/data/a5/cbox/tinyrender" ]; then
 fi
 
 # A software GPU for the headless wgpu tests (Mesa's lavapipe Vulkan driver; EGL/llvmpipe as
-# a fallback). A missing adapter fails the viewer tests; it is never skipped.
+# a fallback), and for the viewer's window tests (host-viewer/tests/window.rs) an X server
+# without a screen (xvfb), synthetic input and window titles (xdotool) and window screenshots
+# (imagemagick's `import`). A missing adapter or tool fails those tests; they never skip.
 need=()
-for pkg in mesa-vulkan-drivers libegl1 libgl1-mesa-dri; do
+for pkg in mesa-vulkan-drivers libegl1 libgl1-mesa-dri xvfb xdotool imagemagick; do
     dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q 'install ok installed' || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then

@@ -163,6 +163,7 @@ pub fn run_bench(
         threads: s.threads,
         progress: false,
         shard: Shard::WHOLE,
+        strategies: None,
     };
     // Warm-up: page in the scene, start the allocator's arenas; not measured.
     if let Some(&first) = s.integrators.first() {

@@ -177,6 +177,46 @@ pub fn srgb_to_linear(v: f32) -> f32 {
     }
 }
 
+/// The 8-bit sRGB code of a linear value as the PNG previews store it: [`linear_to_srgb`]
+/// (clamped to [0, 1]) scaled to 255 and rounded half up.
+#[must_use]
+pub fn srgb8_code(v: f32) -> u8 {
+    (linear_to_srgb(v) * 255.0 + 0.5) as u8
+}
+
+/// The RGB bytes of the PNG preview of `image` (row 0 first), [`srgb8_code`] per channel.
+#[must_use]
+pub fn srgb8(image: &Image) -> Vec<u8> {
+    image
+        .pixels
+        .iter()
+        .flat_map(|c| c.to_array())
+        .map(srgb8_code)
+        .collect()
+}
+
+/// Writes `exr` and its PNG preview beside it (same stem, `.png`), each atomically; if the PNG
+/// fails the EXR is removed again, so no half of the pair is left behind. Returns the PNG's
+/// path.
+///
+/// # Errors
+/// When either file cannot be written, or `exr` ends in `.png`.
+pub fn write_exr_and_png(exr: &Path, image: &Image) -> Result<PathBuf> {
+    let png = exr.with_extension("png");
+    if png == exr {
+        return Err(Error::in_file(
+            exr,
+            "the output must be the EXR (a .png preview is written beside it); use -o NAME.exr",
+        ));
+    }
+    write_exr(exr, image)?;
+    if let Err(e) = write_png(&png, image) {
+        let _ = std::fs::remove_file(exr);
+        return Err(e);
+    }
+    Ok(png)
+}
+
 /// Writes an 8-bit sRGB PNG preview (values clamped to [0, 1], no tone mapping).
 ///
 /// # Errors
@@ -192,12 +232,7 @@ pub fn write_png(path: &Path, image: &Image) -> Result<()> {
         let mut w = enc
             .write_header()
             .map_err(|e| Error::in_file(path, format!("cannot write PNG: {e}")))?;
-        let data: Vec<u8> = image
-            .pixels
-            .iter()
-            .flat_map(|c| c.to_array())
-            .map(|v| (linear_to_srgb(v) * 255.0 + 0.5) as u8)
-            .collect();
+        let data = srgb8(image);
         let png_err =
             |e: png::EncodingError| Error::in_file(path, format!("cannot write PNG: {e}"));
         w.write_image_data(&data).map_err(png_err)?;

@@ -3,7 +3,7 @@
 use clap::{Parser, Subcommand};
 use ember_cli::bake::{bake, default_bake_path, write_ply, BakeSettings, BAKE_INSET};
 use ember_cli::compare::{compare, write_error_png};
-use ember_cli::image::{read_exr, write_exr, write_png};
+use ember_cli::image::{read_exr, write_exr, write_exr_and_png, write_png};
 use ember_cli::render::{render_interruptible, render_memory, RenderSettings, Shard};
 use ember_cli::scene_file::{RendererDesc, MAX_FILM_SIDE};
 use ember_cli::shard::{merge, read_partial, render_key, write_partial};
@@ -145,9 +145,9 @@ struct RenderArgs {
     /// Film height in pixels (default: the scene's).
     #[arg(long)]
     height: Option<u32>,
-    /// Tile side in pixels. Does not change the image.
-    #[arg(long, default_value_t = 16)]
-    tile: u32,
+    /// Tile side in pixels (default 16). Does not change the image.
+    #[arg(long)]
+    tile: Option<u32>,
     /// Integrator (default: the scene's `type`, `isExplicit` choosing explicit or implicit for
     /// `path`): implicit, explicit, mis (emitter and BSDF sampling combined by multiple
     /// importance sampling), lighttracer, bdpt (power heuristic) or bdpt-balance.
@@ -156,9 +156,18 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
-    /// Refuse renders whose image buffers would need more than this many GiB.
-    #[arg(long, default_value_t = 16.0)]
-    max_memory_gib: f64,
+    /// Refuse renders whose image buffers would need more than this many GiB (default 16).
+    #[arg(long)]
+    max_memory_gib: Option<f64>,
+    /// BDPT only: also write one image per connection strategy (s, t) into DIR, unweighted
+    /// (`s<s>_t<t>.exr`) and MIS-weighted (`s<s>_t<t>_weighted.exr`), with PNG previews: the
+    /// weighted images of one depth sum to the render's image of that depth.
+    #[arg(long)]
+    strategies: Option<PathBuf>,
+    /// Deepest strategies written by --strategies (scattering vertices; each depth d has
+    /// d + 2 strategies, and their films take 48 bytes per pixel each).
+    #[arg(long, default_value_t = 4, requires = "strategies")]
+    strategies_depth: u32,
     /// Render only shard I of N (tiles t with t mod N = I) to a partial EXR with sample counts,
     /// for `ember merge` (default output: `<stem>.shard-I-of-N.exr`).
     #[arg(long, value_parser = parse_shard)]
@@ -221,6 +230,10 @@ static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// More worker threads than this is a typo, not a machine.
 const MAX_THREADS: usize = 4096;
+
+/// `--tile` and `--max-memory-gib` when not given.
+const DEFAULT_TILE: u32 = 16;
+const DEFAULT_MAX_MEMORY_GIB: f64 = 16.0;
 
 fn run_render(a: &RenderArgs) -> Result<()> {
     // Command-line values are checked before any work; errors name the scene being rendered.
@@ -297,28 +310,47 @@ fn run_render(a: &RenderArgs) -> Result<()> {
             ),
         ));
     }
-    let memory = render_memory(width, height);
-    if memory as f64 > a.max_memory_gib * f64::from(1u32 << 30) {
+    if a.strategies.is_some() && !matches!(integrator, Integrator::Bdpt(_)) {
         return Err(Error::in_file(
             &a.scene,
             format!(
-                "a {width}x{height} render needs {:.1} GiB of image buffers, more than --max-memory-gib {}",
-                memory as f64 / f64::from(1u32 << 30),
-                a.max_memory_gib
+                "--strategies writes the images of BDPT's (s, t) strategies; the integrator is {}",
+                ember_cli::bench::integrator_name(integrator)
             ),
         ));
     }
-    let camera = scene.camera(width, height);
+    if let Some(dir) = &a.strategies {
+        if !dir.is_dir() {
+            return Err(Error::in_file(
+                dir,
+                "--strategies: the directory does not exist",
+            ));
+        }
+    }
     let settings = RenderSettings {
         integrator,
         path,
         spp,
         seed: a.seed,
-        tile: a.tile.max(1),
+        tile: a.tile.unwrap_or(DEFAULT_TILE).max(1),
         threads: a.threads,
         progress: !a.quiet,
         shard,
+        strategies: a.strategies.as_ref().map(|_| a.strategies_depth),
     };
+    let memory = render_memory(width, height, &settings);
+    let max_memory_gib = a.max_memory_gib.unwrap_or(DEFAULT_MAX_MEMORY_GIB);
+    if memory as f64 > max_memory_gib * f64::from(1u32 << 30) {
+        return Err(Error::in_file(
+            &a.scene,
+            format!(
+                "a {width}x{height} render needs {:.1} GiB of image buffers, more than --max-memory-gib {}",
+                memory as f64 / f64::from(1u32 << 30),
+                max_memory_gib
+            ),
+        ));
+    }
+    let camera = scene.camera(width, height);
     let view = scene.data.view();
     if !a.quiet {
         eprintln!(
@@ -359,8 +391,7 @@ fn run_render(a: &RenderArgs) -> Result<()> {
         // The partial image is named by its sample count, never mistaken for the full render.
         let stem = out.file_stem().unwrap_or_default().to_string_lossy();
         let partial = out.with_file_name(format!("{stem}_partial_{}spp.exr", r.spp));
-        write_exr(&partial, &r.image)?;
-        write_png(&partial.with_extension("png"), &r.image)?;
+        write_exr_and_png(&partial, &r.image)?;
         eprintln!(
             "ember: interrupted after {} of {spp} spp; wrote {}",
             r.spp,
@@ -368,11 +399,22 @@ fn run_render(a: &RenderArgs) -> Result<()> {
         );
         std::process::exit(130);
     }
-    write_exr(&out, &r.image)?;
-    if let Err(e) = write_png(&png, &r.image) {
-        // Leave no half of the output behind.
-        let _ = std::fs::remove_file(&out);
-        return Err(e);
+    write_exr_and_png(&out, &r.image)?;
+    if let (Some(dir), Some(films)) = (&a.strategies, &r.strategies) {
+        let mut written = 0;
+        for (s, t) in films.strategies() {
+            let Some((unweighted, weighted)) = films.images(s, t, r.spp) else {
+                continue;
+            };
+            write_exr_and_png(&dir.join(format!("s{s}_t{t}.exr")), &unweighted)?;
+            write_exr_and_png(&dir.join(format!("s{s}_t{t}_weighted.exr")), &weighted)?;
+            written += 2;
+        }
+        eprintln!(
+            "ember: wrote {written} strategy images (depth 0 to {}) to {}",
+            films.max_depth,
+            dir.display()
+        );
     }
     let mean = r.image.mean();
     eprintln!(
@@ -391,6 +433,34 @@ fn run_render(a: &RenderArgs) -> Result<()> {
 /// Hands a real-time scene to `ember-view --headless`, which sits beside this binary: the
 /// GPU stack stays out of `ember` (render nodes and embedders need not link wgpu).
 fn render_with_viewer(a: &RenderArgs) -> Result<()> {
+    // Options of the offline path tracer that a rasterised frame of the bake has no use for
+    // are refused rather than dropped: the user asked for something this render cannot do.
+    let not_applicable = [
+        (
+            a.integrator.is_some(),
+            "--integrator",
+            "the bake's path tracer is ember-view's --bake-estimator",
+        ),
+        (
+            a.shard.is_some(),
+            "--shard",
+            "the frame is drawn whole; the bake is not split",
+        ),
+        (a.tile.is_some(), "--tile", "the frame has no tiles"),
+        (
+            a.max_memory_gib.is_some(),
+            "--max-memory-gib",
+            "there are no path-tracing image buffers",
+        ),
+    ];
+    if let Some((_, flag, why)) = not_applicable.iter().find(|(given, _, _)| *given) {
+        return Err(Error::in_file(
+            &a.scene,
+            format!(
+                "{flag} does not apply to a real-time \"gi\" scene, whose frame is rasterised from its bake ({why})"
+            ),
+        ));
+    }
     let exe = std::env::current_exe()
         .map_err(|e| Error::new(format!("cannot locate the ember binary: {e}")))?;
     let viewer = exe.with_file_name(format!("ember-view{}", std::env::consts::EXE_SUFFIX));
@@ -419,6 +489,9 @@ fn render_with_viewer(a: &RenderArgs) -> Result<()> {
     }
     cmd.arg("--seed").arg(a.seed.to_string());
     cmd.arg("--threads").arg(a.threads.to_string());
+    if a.no_shortcuts {
+        cmd.arg("--no-shortcuts");
+    }
     if a.quiet {
         cmd.arg("-q");
     }

@@ -31,6 +31,20 @@ impl ViewCamera {
         }
     }
 
+    /// The path tracer's camera for this view at a film size: the same `look_at` as
+    /// `LoadedScene::camera`, so the scene camera gives `ember render`'s rays bit for bit.
+    #[must_use]
+    pub fn kernel_camera(&self, width: u32, height: u32) -> ember_kernel::camera::Camera {
+        ember_kernel::camera::Camera::look_at(
+            self.eye,
+            self.target,
+            self.up,
+            self.fov_y_degrees,
+            width,
+            height,
+        )
+    }
+
     /// World → clip matrix for wgpu (clip z in [0, 1], right-handed, looking down −z).
     #[must_use]
     pub fn view_proj(&self, aspect: f32) -> Mat4 {

@@ -1,17 +1,23 @@
-//! ember's real-time viewer as a library: draws a mesh whose per-vertex colours hold baked global
-//! illumination (TinyRender's `gi` pass, FORMAT.md §6) with Gouraud shading, through wgpu.
+//! ember's viewer as a library: draws a mesh whose per-vertex colours hold baked global
+//! illumination (TinyRender's `gi` pass, FORMAT.md §6) with Gouraud shading, through wgpu, and
+//! shows a progressive path-traced view of a scene converging.
 //!
 //! * [`render_headless`] renders one frame offscreen and returns it as a linear image, the way
 //!   TinyRender saves the first real-time frame (FORMAT.md §8): linear → sRGB by the hardware
 //!   into an 8-bit sRGB target, read back, and decoded with the exact sRGB EOTF, so the values
 //!   are clamped to [0, 1].
-//! * [`window::run`] opens a window with an orbit/fly camera.
+//! * [`window::run`] opens a window with an orbit/fly camera: the baked view, and the
+//!   progressive path-traced view ([`trace::TraceWorker`] renders passes with host-cli's
+//!   `Progressive` on worker threads; [`display::TraceDisplay`] shows them with exposure and
+//!   the sRGB transfer in WGSL).
 //!
 //! The `ember-view` binary is a thin layer over this crate.
 
 pub mod camera;
+pub mod display;
 pub mod gpu;
 pub mod headless;
+pub mod trace;
 pub mod window;
 
 pub use camera::ViewCamera;

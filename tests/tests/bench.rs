@@ -197,6 +197,7 @@ fn ray_counts_follow_the_path_structure() {
                 threads,
                 progress: false,
                 shard: Shard::WHOLE,
+                strategies: None,
             },
         );
         r.rays

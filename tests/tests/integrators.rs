@@ -144,6 +144,7 @@ fn glass_furnace_is_invisible_with_every_integrator() {
                 threads: 0,
                 progress: false,
                 shard: ember_cli::render::Shard::WHOLE,
+                strategies: None,
             },
         )
     };

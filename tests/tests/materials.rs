@@ -38,6 +38,7 @@ fn render_with(
             threads: 0,
             progress: false,
             shard: Shard::WHOLE,
+            strategies: None,
         },
     )
 }

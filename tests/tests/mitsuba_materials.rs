@@ -205,6 +205,7 @@ fn render_case(scene: &LoadedScene, case: &Case, label: &str) -> Rendered {
             threads: 0,
             progress: false,
             shard: Shard::WHOLE,
+            strategies: None,
         },
     );
     println!(

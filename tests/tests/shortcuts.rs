@@ -36,6 +36,7 @@ fn render_with(
             threads: 0,
             progress: false,
             shard: Shard::WHOLE,
+            strategies: None,
         },
     )
 }

@@ -84,6 +84,7 @@ fn render_data(
             threads: 0,
             progress: false,
             shard: Shard::WHOLE,
+            strategies: None,
         },
     )
 }

@@ -79,6 +79,7 @@ pub fn render_scene_full(
             threads,
             progress: false,
             shard: ember_cli::render::Shard::WHOLE,
+            strategies: None,
         },
     )
 }
