@@ -474,7 +474,7 @@ mod tests {
         let e = SceneFile::parse(Path::new("s.toml"), toml).unwrap_err();
         assert_eq!(
             e.to_string(),
-            "s.toml: [renderer].type = \"x\\ny\" is not a renderer type (realtime = false); valid types: \"path\" (realtime = false) and \"gi\" (realtime = true)"
+            "s.toml: [renderer].type = \"x\\ny\" is not a renderer type (realtime = false); valid types: \"path\", \"mis\", \"lighttracer\" and \"bdpt\" (realtime = false), \"gi\" (realtime = true)"
         );
         let toml = toml.replace("type = \"\"\"x\ny\"\"\"", "type = \"path\"");
         let e = SceneFile::parse(Path::new("s.toml"), &toml).unwrap_err();

@@ -326,6 +326,50 @@ fn renderer_type_unknown() {
 }
 
 #[test]
+fn bdpt_heuristic_unknown() {
+    let toml = edit(
+        SCENE_TOML,
+        "type = \"path\"",
+        "type = \"bdpt\"\nmisHeuristic = \"fast\"",
+    );
+    toml_case(
+        "misHeuristic = \"fast\"",
+        &toml,
+        &[
+            "[renderer].misHeuristic = \"fast\" is not a heuristic",
+            "\"power\" and \"balance\"",
+        ],
+    );
+}
+
+#[test]
+fn bdpt_depth_beyond_its_cap() {
+    let toml = edit(SCENE_TOML, "type = \"path\"", "type = \"bdpt\"");
+    let toml = if toml.contains("maxDepth") {
+        toml.lines()
+            .map(|l| {
+                if l.trim_start().starts_with("maxDepth") {
+                    "maxDepth = 100"
+                } else {
+                    l
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    } else {
+        toml.replace("type = \"bdpt\"", "type = \"bdpt\"\nmaxDepth = 100")
+    };
+    toml_case(
+        "maxDepth = 100 with bdpt",
+        &toml,
+        &[
+            "[renderer].maxDepth",
+            "maxDepth = 100 is deeper than bidirectional path tracing supports (64",
+        ],
+    );
+}
+
+#[test]
 fn renderer_type_not_implemented() {
     let toml = edit(SCENE_TOML, "type = \"path\"", "type = \"ao\"");
     toml_case(
