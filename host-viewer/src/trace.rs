@@ -448,15 +448,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn integrators_cycle_through_all_three() {
+    fn integrators_cycle_through_every_integrator() {
         let mut i = Integrator::PathImplicit;
         let mut seen = Vec::new();
-        for _ in 0..3 {
+        for _ in 0..5 {
             seen.push(integrator_name(i));
             i = next_integrator(i);
         }
         assert_eq!(i, Integrator::PathImplicit);
-        assert_eq!(seen, ["implicit", "explicit", "mis"]);
+        assert_eq!(seen, ["implicit", "explicit", "mis", "lighttracer", "bdpt"]);
+        let balance = Integrator::Bdpt(MisHeuristic::Balance);
+        assert_eq!(next_integrator(balance), Integrator::PathImplicit);
     }
 
     #[test]
