@@ -229,6 +229,8 @@ struct Splats {
     /// pass's estimate (own samples and splats over its n_p samples); and the pass count.
     batch_sq: Vec<glam::DVec3>,
     passes: u32,
+    /// Splats of the completed passes that were refused (not finite or too large).
+    invalid: u64,
     strategies: Option<std::sync::Arc<StrategyFilms>>,
 }
 
@@ -246,6 +248,7 @@ impl Splats {
             pass: AtomicSplats::new(width, height),
             batch_sq: vec![glam::DVec3::ZERO; n],
             passes: 0,
+            invalid: 0,
             strategies,
         }
     }
@@ -408,6 +411,7 @@ impl Progressive {
                     sp.batch_sq.iter_mut().for_each(|b| *b = glam::DVec3::ZERO);
                     sp.pass.clear();
                     sp.passes = 0;
+                    sp.invalid = 0;
                     Some(sp)
                 }
                 _ => Some(Splats::new(w, h, settings)),
@@ -504,7 +508,8 @@ impl Progressive {
                 })
                 .collect()
         });
-        // An interrupted pass is dropped whole: every pixel keeps the same sample count.
+        // An interrupted pass is dropped whole, with its splats and refused splats: every
+        // pixel keeps the same sample count.
         let Some(pass) = pass else {
             if let Some(sp) = &self.splats {
                 sp.pass.clear();
@@ -513,6 +518,7 @@ impl Progressive {
         };
         if let Some(sp) = &mut self.splats {
             let pass_splats = sp.pass.snapshot();
+            sp.invalid += sp.pass.invalid();
             sp.pass.clear();
             add_batch(
                 &mut sp.batch_sq,
@@ -656,7 +662,7 @@ impl Progressive {
                     Rgb::ZERO
                 };
             }
-            invalid += sp.pass.invalid();
+            invalid += sp.invalid;
             splats = Some(sp.total.clone());
             strategies = sp.strategies.clone();
         }

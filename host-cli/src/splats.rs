@@ -78,13 +78,14 @@ impl AtomicSplats {
         }
     }
 
-    /// Resets every sum to 0.
+    /// Resets every sum and the count of refused splats to 0.
     pub fn clear(&self) {
         for s in &self.sums {
             for a in s {
                 a.store(0, Ordering::Relaxed);
             }
         }
+        self.invalid.store(0, Ordering::Relaxed);
     }
 
     /// Splats that were refused (non-finite or too large).
@@ -264,5 +265,7 @@ mod tests {
         assert_eq!(px, resolve(Rgb::splat(1.0), b.snapshot()[1], 2));
         a.add(Vec2::new(0.5, 0.5), Rgb::new(f32::NAN, 0.0, 0.0));
         assert_eq!(a.invalid(), 1);
+        a.clear();
+        assert_eq!((a.invalid(), a.snapshot()), (0, vec![[0; 3]; 2]));
     }
 }

@@ -36,6 +36,7 @@
 
 mod common;
 
+use common::scenes::*;
 use common::{block_mean_variances, cbox_scene, critical_z, project_data, z_scores, ZReport};
 use ember_cli::mesh::{bsdf_for, SceneData};
 use ember_cli::render::{render, RenderSettings, Rendered, Shard};
@@ -47,7 +48,6 @@ use ember_kernel::sampler::mix64;
 use ember_kernel::scene::Material;
 use ember_kernel::Rgb;
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
 const BX: u32 = 8;
 const BY: u32 = 6;
@@ -143,104 +143,6 @@ fn seed_of(label: &str) -> u64 {
 // ---------------------------------------------------------------------------------------------
 // 1. Scale and position invariance
 // ---------------------------------------------------------------------------------------------
-
-/// `p ↦ p·scale + offset·(1, 1, 1)`, evaluated in f64 and rounded once to f32.
-#[derive(Clone, Copy, Debug)]
-struct Transform {
-    scale: f64,
-    offset: f64,
-}
-
-impl Transform {
-    fn apply(self, p: Vec3) -> Vec3 {
-        (p.as_dvec3() * self.scale + DVec3::splat(self.offset)).as_vec3()
-    }
-
-    /// The inverse translation of a point produced by [`Self::apply`] with scale 1. It is
-    /// exact: `q` and the offset are within a factor of 2 of each other (Sterbenz), and the
-    /// test asserts it.
-    fn untranslate(self, q: Vec3) -> Vec3 {
-        let r = (q.as_dvec3() - DVec3::splat(self.offset)).as_vec3();
-        assert_eq!(
-            r.as_dvec3() + DVec3::splat(self.offset),
-            q.as_dvec3(),
-            "translating back by {} is not exact",
-            self.offset
-        );
-        r
-    }
-
-    fn label(self) -> String {
-        if self.offset != 0.0 {
-            format!("translate {:e}", self.offset)
-        } else {
-            format!("scale {:e}", self.scale)
-        }
-    }
-}
-
-/// The scene's geometry and camera with every point mapped by `f`. Normals are unchanged by a
-/// uniform positive scale and a translation. The BVH is rebuilt. The emitter CDF is kept: it
-/// holds normalised area fractions, which a uniform scale leaves unchanged (re-checked by
-/// [`cdf_deviation`]); the area pdf uses the transformed triangle's own area, so the estimator
-/// stays unbiased for the geometry as stored even where rounding changed an area.
-fn mapped(scene: &LoadedScene, f: impl Fn(Vec3) -> Vec3, w: u32, h: u32) -> (SceneData, Camera) {
-    let mut data = scene.data.clone();
-    for p in &mut data.positions {
-        *p = f(*p);
-    }
-    data.build_bvh().unwrap();
-    let c = &scene.file.camera;
-    let camera = Camera::look_at(f(c.eye.into()), f(c.at.into()), c.up.into(), c.fov, w, h);
-    (data, camera)
-}
-
-/// Largest difference between the stored emitter CDF and the one the loader's rule (an
-/// emitter uniformly, then a triangle by area) gives for the current positions, in f64.
-fn cdf_deviation(data: &SceneData) -> f64 {
-    let emitters: Vec<_> = data
-        .objects
-        .iter()
-        .filter(|o| {
-            o.triangles
-                .clone()
-                .any(|t| data.emitter_triangles.contains(&t))
-        })
-        .collect();
-    let mut acc = 0.0f64;
-    let mut worst = 0.0f64;
-    let mut i = 0;
-    for o in &emitters {
-        let area: f64 = o
-            .triangles
-            .clone()
-            .map(|t| f64::from(data.triangle_area(t)))
-            .sum();
-        for t in o.triangles.clone() {
-            acc += f64::from(data.triangle_area(t)) / area / emitters.len() as f64;
-            assert_eq!(data.emitter_triangles[i], t);
-            worst = worst.max((acc - f64::from(data.emitter_cdf[i])).abs());
-            i += 1;
-        }
-    }
-    assert_eq!(i, data.emitter_cdf.len());
-    worst
-}
-
-const SCALES: [f64; 5] = [1e-4, 1e-2, 1.0, 1e2, 1e4];
-const OFFSETS: [f64; 2] = [1e4, 1e5];
-
-fn transforms() -> Vec<Transform> {
-    SCALES
-        .iter()
-        .map(|&scale| Transform { scale, offset: 0.0 })
-        .chain(
-            OFFSETS
-                .iter()
-                .map(|&offset| Transform { scale: 1.0, offset }),
-        )
-        .collect()
-}
 
 /// The Cornell box (explicit, 4 bounces) at every scale and offset against the unscaled box.
 ///
@@ -374,221 +276,8 @@ fn closed_furnace_does_not_leak_under_scale_and_translation() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Scenes written to disk
+// Rendering the scenes written to disk (`common::scenes`)
 // ---------------------------------------------------------------------------------------------
-
-/// A fresh folder under the system temporary directory, removed when dropped unless the test
-/// is failing (then it is kept for inspection).
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let slug: String = name
-            .chars()
-            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
-            .collect();
-        let path =
-            std::env::temp_dir().join(format!("ember-stability-{slug}-{}-{n}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&path);
-        std::fs::create_dir_all(&path).expect("cannot create a temporary directory");
-        Self(path)
-    }
-
-    fn path(&self) -> &std::path::Path {
-        &self.0
-    }
-
-    fn write(&self, name: &str, contents: &str) -> PathBuf {
-        let p = self.0.join(name);
-        std::fs::write(&p, contents).expect("cannot write test input");
-        p
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        if std::thread::panicking() {
-            eprintln!("test inputs kept in {}", self.0.display());
-        } else {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-}
-
-/// A Wavefront OBJ/MTL pair under construction (1-based indices are handled here).
-#[derive(Default, Clone)]
-struct Mesh {
-    obj: String,
-    mtl: String,
-    vertices: usize,
-    normals: usize,
-}
-
-fn v3(v: Vec3) -> String {
-    format!("{} {} {}", v.x, v.y, v.z)
-}
-
-impl Mesh {
-    fn material(mut self, name: &str, kd: Vec3, ks: Vec3, ns: f32, ke: Vec3, illum: u8) -> Self {
-        writeln!(
-            self.mtl,
-            "newmtl {name}\nKd {}\nKs {}\nNs {ns}\nKe {}\nillum {illum}\n",
-            v3(kd),
-            v3(ks),
-            v3(ke)
-        )
-        .unwrap();
-        self
-    }
-
-    /// An object; `faces` index `positions` and `normals` from 0.
-    fn object(
-        mut self,
-        name: &str,
-        material: &str,
-        positions: &[Vec3],
-        normals: &[Vec3],
-        faces: &[[(usize, usize); 3]],
-    ) -> Self {
-        writeln!(self.obj, "o {name}").unwrap();
-        for p in positions {
-            writeln!(self.obj, "v {}", v3(*p)).unwrap();
-        }
-        for n in normals {
-            writeln!(self.obj, "vn {}", v3(*n)).unwrap();
-        }
-        writeln!(self.obj, "usemtl {material}").unwrap();
-        for f in faces {
-            let c: Vec<String> = f
-                .iter()
-                .map(|&(v, n)| format!("{}//{}", self.vertices + v + 1, self.normals + n + 1))
-                .collect();
-            writeln!(self.obj, "f {}", c.join(" ")).unwrap();
-        }
-        self.vertices += positions.len();
-        self.normals += normals.len();
-        self
-    }
-
-    /// A quad as two triangles (0, 1, 2) and (0, 2, 3), with one normal per corner.
-    fn quad(self, name: &str, material: &str, c: [Vec3; 4], n: [Vec3; 4]) -> Self {
-        self.object(
-            name,
-            material,
-            &c,
-            &n,
-            &[[(0, 0), (1, 1), (2, 2)], [(0, 0), (2, 2), (3, 3)]],
-        )
-    }
-
-    /// Writes `scene.toml`, `mesh.obj` and `mesh.mtl` and loads them.
-    fn load(&self, dir: &TempDir, camera: &Cam) -> LoadedScene {
-        self.write(dir, camera);
-        LoadedScene::load(&dir.path().join("scene.toml")).unwrap_or_else(|e| panic!("{e}"))
-    }
-
-    fn write(&self, dir: &TempDir, camera: &Cam) -> PathBuf {
-        dir.write("mesh.obj", &format!("mtllib mesh.mtl\n{}", self.obj));
-        dir.write("mesh.mtl", &self.mtl);
-        let a = |v: Vec3| format!("[{}, {}, {}]", v.x, v.y, v.z);
-        dir.write(
-            "scene.toml",
-            &format!(
-                "[input]\nobjfile = \"mesh.obj\"\n\n[camera]\neye = {}\nat = {}\nup = {}\nfov = {}\n\n\
-                 [film]\nwidth = {}\nheight = {}\n\n[renderer]\nrealtime = false\ntype = \"path\"\n\
-                 isExplicit = true\nmaxDepth = -1\nrrDepth = 5\nrrProb = 0.95\nspp = 1\n",
-                a(camera.eye),
-                a(camera.at),
-                a(camera.up),
-                camera.fov,
-                camera.width,
-                camera.height
-            ),
-        )
-    }
-}
-
-#[derive(Clone, Copy, Debug)]
-struct Cam {
-    eye: Vec3,
-    at: Vec3,
-    up: Vec3,
-    fov: f32,
-    width: u32,
-    height: u32,
-}
-
-/// The camera of the room scenes: it sees the floor, the back wall and the light from below.
-const ROOM_CAM: Cam = Cam {
-    eye: Vec3::new(0.0, 0.6, 2.5),
-    at: Vec3::new(0.0, 0.3, 0.0),
-    up: Vec3::Y,
-    fov: 45.0,
-    width: 40,
-    height: 30,
-};
-
-const UP: [Vec3; 4] = [Vec3::Y; 4];
-const DOWN: [Vec3; 4] = [Vec3::NEG_Y; 4];
-const FLOOR: [Vec3; 4] = [
-    Vec3::new(-1.0, 0.0, 1.0),
-    Vec3::new(1.0, 0.0, 1.0),
-    Vec3::new(1.0, 0.0, -1.0),
-    Vec3::new(-1.0, 0.0, -1.0),
-];
-/// Facing down (counter-clockwise seen from below).
-const LIGHT: [Vec3; 4] = [
-    Vec3::new(-0.25, 1.0, -0.25),
-    Vec3::new(0.25, 1.0, -0.25),
-    Vec3::new(0.25, 1.0, 0.25),
-    Vec3::new(-0.25, 1.0, 0.25),
-];
-
-fn room_materials() -> Mesh {
-    Mesh::default()
-        .material("white", Vec3::splat(0.6), Vec3::ZERO, 1.0, Vec3::ZERO, 7)
-        .material("black", Vec3::ZERO, Vec3::ZERO, 1.0, Vec3::ZERO, 7)
-        .material(
-            "glossy",
-            Vec3::new(0.4, 0.5, 0.6),
-            Vec3::splat(0.2),
-            20.0,
-            Vec3::ZERO,
-            8,
-        )
-        .material("light", Vec3::ZERO, Vec3::ZERO, 1.0, Vec3::splat(4.0), 7)
-}
-
-fn back_wall(m: Mesh) -> Mesh {
-    m.quad(
-        "wall",
-        "glossy",
-        [
-            Vec3::new(-1.0, 0.0, -1.0),
-            Vec3::new(1.0, 0.0, -1.0),
-            Vec3::new(1.0, 2.0, -1.0),
-            Vec3::new(-1.0, 2.0, -1.0),
-        ],
-        [Vec3::Z; 4],
-    )
-}
-
-/// Floor (with the given normals and material), glossy back wall, light (given normals).
-fn room(floor_normals: [Vec3; 4], floor_material: &str, light_normals: [Vec3; 4]) -> Mesh {
-    let m = room_materials().quad("floor", floor_material, FLOOR, floor_normals);
-    back_wall(m).quad("light", "light", LIGHT, light_normals)
-}
-
-fn room_settings() -> PathSettings {
-    PathSettings {
-        max_depth: 4,
-        rr_depth: 5,
-        rr_prob: 0.95,
-        ..PathSettings::default()
-    }
-}
 
 fn render_scene(scene: &LoadedScene, integrator: Integrator, spp: u32, seed: u64) -> Rendered {
     let camera = scene.camera(scene.file.width, scene.file.height);
@@ -842,33 +531,6 @@ fn emitter_seen_from_behind_is_black() {
     for r in render_all(&scene, "light from the front", 8, 7) {
         assert!(r.image.mean().min_element() > 0.0);
     }
-}
-
-/// An axis-aligned closed cube `[c − h, c + h]`, its normals pointing out or in, with the
-/// winding to match.
-fn cube(m: Mesh, name: &str, material: &str, c: Vec3, h: f32, outward: bool) -> Mesh {
-    let mut m = m;
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let n = Vec3::AXES[axis] * sign;
-            let (u, v) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
-            // Counter-clockwise about n.
-            let (u, v) = if sign > 0.0 { (u, v) } else { (v, u) };
-            let corners = [
-                c + (n - u - v) * h,
-                c + (n + u - v) * h,
-                c + (n + u + v) * h,
-                c + (n - u + v) * h,
-            ];
-            let (corners, n) = if outward {
-                (corners, n)
-            } else {
-                ([corners[3], corners[2], corners[1], corners[0]], -n)
-            };
-            m = m.quad(&format!("{name}_{axis}_{sign}"), material, corners, [n; 4]);
-        }
-    }
-    m
 }
 
 /// A camera inside a closed cube in the lit room: with outward normals it sees back faces

@@ -5,7 +5,7 @@ mod ray;
 mod triangle;
 
 pub use aabb::Aabb;
-pub use ray::{offset_ray_origin, spawn_ray, spawn_ray_to, Ray, SHADOW_EPSILON};
+pub use ray::{offset_ray_origin, shadow_ray, spawn_connection, spawn_ray, spawn_ray_to, Ray};
 pub use triangle::{
     inset_barycentrics, intersect_triangle, triangle_point, triangle_point_error, TriangleHit,
     WatertightRay,

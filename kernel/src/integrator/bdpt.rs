@@ -33,7 +33,7 @@ use super::{dims, PathSettings};
 use crate::bsdf::{Bsdf, Diffuse, SurfaceBsdf, TransportMode};
 use crate::camera::Camera;
 use crate::emitter::{emitter_pdf, pdf_le_direction, sample_emitter, sample_le};
-use crate::geometry::{spawn_ray, spawn_ray_to, Ray};
+use crate::geometry::{spawn_connection, spawn_ray, spawn_ray_to, Ray};
 use crate::math::Frame;
 use crate::sampler::Sampler;
 use crate::scene::SceneView;
@@ -308,13 +308,25 @@ impl BdptSink for crate::splat::NoSplats {}
 impl BdptSink for crate::splat::SplatBuffer<'_> {}
 
 /// Walks a subpath from `ray`, filling `path[start..]` (`path[start - 1]` is its origin,
-/// already set). `pdf_dir` is the origin's solid-angle density of `ray.d`, `beta` the
-/// throughput carried along it. Returns the number of vertices in `path` afterwards.
+/// already set), `beta` the throughput carried along `ray`. Returns the number of vertices in
+/// `path` afterwards.
+///
+/// The densities stored with the vertices are computed from the **vertex positions**
+/// ([`vertex_pdf`]), exactly as [`mis_weight`] recomputes the connection's: `pdf_fwd` of a new
+/// vertex from its two predecessors, and `pdf_rev` of the vertex two back once the new one
+/// exists (only then is the direction it was reached from known by position; `mis_weight` reads
+/// a stored `pdf_rev` only for vertices with two successors). Not from the sampled directions:
+/// a ray leaves its vertex from an offset spawn point, so the direction between two vertices
+/// is not quite the sampled one, and far from the origin (offsets grow with the coordinates)
+/// densities of sampled directions and of positions no longer agree: the weights of a path's
+/// strategies then stopped summing to one (the white furnace translated by 1e5 rendered 8.8%
+/// too dark, 1.1% at 1e4).
+#[allow(clippy::too_many_arguments)]
 fn random_walk<S: Sampler>(
     scene: &SceneView<'_>,
+    camera: &Camera,
     mut ray: Ray,
     mut beta: Rgb,
-    mut pdf_dir: f32,
     mode: TransportMode,
     settings: &PathSettings,
     sampler: &mut S,
@@ -326,6 +338,8 @@ fn random_walk<S: Sampler>(
     // without the 1/η′² of the dielectric crossings (pbrt's `etaScale`).
     let beta0 = beta.max_element();
     let mut eta_scale = 1.0f32;
+    // Whether the last scattering was by a delta lobe (its densities are 0).
+    let mut delta_step = false;
     while n < path.len() {
         sampler.count_ray();
         let Some(hit) = scene.intersect(&ray) else {
@@ -349,7 +363,13 @@ fn random_walk<S: Sampler>(
             u_select: 0.0,
             u_light: Vec2::ZERO,
         };
-        v.pdf_fwd = convert_density(pdf_dir, &path[n - 1], &v);
+        if !delta_step {
+            let (cur, prev) = (&path[n - 1], n.checked_sub(2).map(|i| &path[i]));
+            v.pdf_fwd = vertex_pdf(camera, cur, prev, &v);
+            if let Some(prev) = prev {
+                path[n - 2].pdf_rev = vertex_pdf(camera, cur, Some(&v), prev);
+            }
+        }
         // The numbers of this vertex, in the subpath's layout.
         let (lobe, direction, roulette) = match mode {
             TransportMode::Radiance => {
@@ -371,16 +391,13 @@ fn random_walk<S: Sampler>(
         let Some(s) = view.sample(lobe, direction, mode) else {
             break;
         };
-        // The density of the reverse step: `wo` sampled from `wi` by the other walk.
-        let mut pdf_rev = bsdf.pdf(s.wi, si.wo, mode).0;
-        pdf_dir = s.pdf.0;
-        if s.flags.is_specular() {
+        // A delta scattering has zero densities both ways (the next vertex's `pdf_fwd` and
+        // this one's predecessor's `pdf_rev`).
+        delta_step = s.flags.is_specular();
+        if delta_step {
             path[n - 1].delta = true;
-            pdf_dir = 0.0;
-            pdf_rev = 0.0;
+            path[n - 2].pdf_rev = 0.0;
         }
-        let (cur, prev) = (path[n - 1], path[n - 2]);
-        path[n - 2].pdf_rev = convert_density(pdf_rev, &cur, &prev);
         beta *= s.weight;
         if mode == TransportMode::Radiance && s.flags.is_transmission() {
             eta_scale *= s.eta * s.eta;
@@ -415,7 +432,6 @@ fn camera_subpath<S: Sampler>(
     path: &mut [Vertex; CAMERA_PATH_VERTICES],
 ) -> usize {
     let n = capacity(settings, 2, CAMERA_PATH_VERTICES);
-    let d = ray.d.normalize();
     path[0] = Vertex {
         kind: VertexKind::Camera,
         p: camera.eye,
@@ -430,12 +446,11 @@ fn camera_subpath<S: Sampler>(
         beta: Rgb::ONE,
         ..Vertex::default()
     };
-    let pdf_dir = camera.pdf_we(d).1 .0;
     random_walk(
         scene,
+        camera,
         *ray,
         Rgb::ONE,
-        pdf_dir,
         TransportMode::Radiance,
         settings,
         sampler,
@@ -447,6 +462,7 @@ fn camera_subpath<S: Sampler>(
 /// Generates a light subpath into `path`; returns its vertex count (0 without emitters).
 fn light_subpath<S: Sampler>(
     scene: &SceneView<'_>,
+    camera: &Camera,
     settings: &PathSettings,
     sampler: &mut S,
     path: &mut [Vertex; LIGHT_PATH_VERTICES],
@@ -480,9 +496,9 @@ fn light_subpath<S: Sampler>(
     let ray = spawn_ray(pt.p, pt.p_err, pt.ng, e.w);
     random_walk(
         scene,
+        camera,
         ray,
         beta,
-        e.pdf_dir.0,
         TransportMode::Importance,
         settings,
         sampler,
@@ -505,7 +521,16 @@ fn geometry<S: Sampler>(scene: &SceneView<'_>, a: &Vertex, b: &Vertex, sampler: 
         return 0.0;
     }
     sampler.count_ray();
-    let shadow = spawn_ray_to(a.p_spawn, a.p_err, a.ng(), b.p_spawn, b.p_err, b.ng());
+    // `a.f(b)` and `b.f(a)` saw the connection as `b.p - a.p` and its negation.
+    let shadow = spawn_connection(
+        a.p_spawn,
+        a.p_err,
+        a.ng(),
+        b.p_spawn,
+        b.p_err,
+        b.ng(),
+        b.p - a.p,
+    );
     if scene.occluded(&shadow) {
         0.0
     } else {
@@ -754,7 +779,7 @@ pub fn li_bdpt<S: Sampler, K: BdptSink>(
     sink: &mut K,
 ) -> Rgb {
     let n_cam = camera_subpath(scene, camera, ray, settings, sampler, &mut scratch.camera);
-    let n_light = light_subpath(scene, settings, sampler, &mut scratch.light);
+    let n_light = light_subpath(scene, camera, settings, sampler, &mut scratch.light);
     let (cam, light) = (&scratch.camera[..n_cam], &scratch.light[..n_light]);
     let mut l = Rgb::ZERO;
     for t in 1..=n_cam {

@@ -6,7 +6,7 @@ use super::{dims, PathSettings};
 use crate::bsdf::TransportMode;
 use crate::camera::{Camera, CameraSample};
 use crate::emitter::sample_le;
-use crate::geometry::{offset_ray_origin, spawn_ray, Ray, SHADOW_EPSILON};
+use crate::geometry::{offset_ray_origin, shadow_ray, spawn_ray, Ray};
 use crate::sampler::Sampler;
 use crate::scene::SceneView;
 use crate::splat::SplatSink;
@@ -20,11 +20,7 @@ use glam::Vec3;
 pub fn ray_to_camera(p: Vec3, p_err: Vec3, ng: Vec3, cs: &CameraSample) -> Ray {
     let o = offset_ray_origin(p, p_err, ng, cs.wi);
     let target = o + cs.wi * cs.dist;
-    Ray {
-        o,
-        d: target - o,
-        t_max: 1.0 - SHADOW_EPSILON,
-    }
+    shadow_ray(o, p_err, target, Vec3::ZERO)
 }
 
 /// Traces one light path and splats every vertex's connection to the camera into `sink`.
