@@ -1495,7 +1495,8 @@ fn bdpt_strategy_images_sum_to_the_image_and_estimate_each_depth() {
     };
     let pixels = |img: &Image| -> Vec<DVec3> { img.pixels.iter().map(|p| p.as_dvec3()).collect() };
     // (s, t) -> (unweighted, weighted) replicates; and the images.
-    let mut films: BTreeMap<(u32, u32), (Vec<Vec<DVec3>>, Vec<Vec<DVec3>>)> = BTreeMap::new();
+    type Images = Vec<Vec<DVec3>>;
+    let mut films: BTreeMap<(u32, u32), (Images, Images)> = BTreeMap::new();
     let mut bounded = Vec::new();
     let mut unbounded_sums = Vec::new();
     let (mut worst, mut control) = (0.0f64, 0.0f64);
