@@ -21,7 +21,7 @@ use crate::render::{render, RenderSettings, Shard};
 use crate::scene_file::MAX_FILM_SIDE;
 use crate::LoadedScene;
 use ember_kernel::integrator::{Integrator, PathSettings};
-use ember_kernel::sampler::{mix64, DEFAULT_SEED};
+use ember_kernel::sampler::{mix64, SamplerKind, DEFAULT_SEED};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -75,6 +75,29 @@ pub fn parse_integrator(s: &str) -> std::result::Result<Integrator, String> {
     }
 }
 
+/// Parses a sampler name (`independent` or `zsobol`).
+///
+/// # Errors
+/// For any other name.
+pub fn parse_sampler(s: &str) -> std::result::Result<SamplerKind, String> {
+    match s.trim() {
+        "independent" => Ok(SamplerKind::Independent),
+        "zsobol" => Ok(SamplerKind::ZSobol),
+        other => Err(format!(
+            "{other:?} is not a sampler (independent or zsobol)"
+        )),
+    }
+}
+
+/// The command-line name of a sampler ([`parse_sampler`]'s inverse).
+#[must_use]
+pub const fn sampler_name(s: SamplerKind) -> &'static str {
+    match s {
+        SamplerKind::Independent => "independent",
+        SamplerKind::ZSobol => "zsobol",
+    }
+}
+
 /// Seed of rung `rung` (0 for 1 spp, 1 for 2 spp, …): a hash of the base seed and the rung, so
 /// the rungs are independent of each other and of a reference rendered with any small or
 /// default seed.
@@ -99,6 +122,7 @@ pub struct BenchSettings {
     pub tile: u32,
     /// Base seed; rung `k` renders with [`rung_seed`]`(seed, k)`.
     pub seed: u64,
+    pub sampler: SamplerKind,
 }
 
 /// One measured rung.
@@ -159,6 +183,7 @@ pub fn run_bench(
         path: s.path,
         spp,
         seed,
+        sampler: s.sampler,
         tile: s.tile.max(1),
         threads: s.threads,
         progress: false,
@@ -423,6 +448,9 @@ pub struct BenchArgs {
     /// Base seed; rung k renders with a hash of it and k.
     #[arg(long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
+    /// Sample sequence: independent, or zsobol (Owen-scrambled Sobol' in Morton order).
+    #[arg(long, value_parser = parse_sampler, default_value = "independent")]
+    pub sampler: SamplerKind,
     /// Tile side in pixels.
     #[arg(long, default_value_t = 16)]
     pub tile: u32,
@@ -508,6 +536,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         threads: a.threads,
         tile: a.tile,
         seed: a.seed,
+        sampler: a.sampler,
     };
     let threads = if a.threads == 0 {
         std::thread::available_parallelism().map_or(1, std::num::NonZero::get)

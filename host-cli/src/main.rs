@@ -136,6 +136,11 @@ struct RenderArgs {
     /// Seed of the sampler; the same seed gives the same image bit for bit.
     #[arg(long, default_value_t = DEFAULT_SEED)]
     seed: u64,
+    /// Sample sequence: independent (default), or zsobol: Owen-scrambled Sobol' points with
+    /// pixels in Morton order, laid out for the render's spp (stratified within pixels,
+    /// blue-noise error across them).
+    #[arg(long, value_parser = ember_cli::bench::parse_sampler, default_value = "independent")]
+    sampler: ember_kernel::sampler::SamplerKind,
     /// Worker threads (default: one per core). Does not change the image.
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -332,6 +337,7 @@ fn run_render(a: &RenderArgs) -> Result<()> {
         path,
         spp,
         seed: a.seed,
+        sampler: a.sampler,
         tile: a.tile.unwrap_or(DEFAULT_TILE).max(1),
         threads: a.threads,
         progress: !a.quiet,

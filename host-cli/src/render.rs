@@ -7,6 +7,7 @@ use ember_kernel::camera::Camera;
 use ember_kernel::integrator::{
     render_pixel, BdptScratch, BdptSink, Integrator, PathSettings, PixelStats,
 };
+use ember_kernel::sampler::{SamplerKind, Sampling};
 use ember_kernel::scene::SceneView;
 use ember_kernel::Rgb;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -20,6 +21,10 @@ pub struct RenderSettings {
     pub path: PathSettings,
     pub spp: u32,
     pub seed: u64,
+    /// The sample sequence (`--sampler`); Sobol' samples are laid out for `spp` samples of
+    /// this film, so a render's first `n` samples equal a render of `n` only with the
+    /// independent sampler.
+    pub sampler: SamplerKind,
     /// Square tile side in pixels; has no effect on the result, only on scheduling.
     pub tile: u32,
     /// Worker threads; 0 means one per core. Has no effect on the result.
@@ -30,6 +35,14 @@ pub struct RenderSettings {
     /// BDPT only: also accumulate each strategy `(s, t)` up to this depth, unweighted and
     /// weighted (`--strategies`). Does not change the image.
     pub strategies: Option<u32>,
+}
+
+impl RenderSettings {
+    /// What the samples of a `width × height` film are keyed by.
+    #[must_use]
+    pub fn sampling(&self, width: u32, height: u32) -> Sampling {
+        Sampling::new(self.sampler, self.seed, self.spp, width, height)
+    }
 }
 
 /// A deterministic part of a render for splitting it across processes or machines: tile `t`
@@ -274,6 +287,7 @@ impl TileJob<'_, '_> {
     ) -> Vec<PixelStats> {
         let (camera, s) = (self.camera, self.settings);
         let (w, h, tile) = (camera.width, camera.height, s.tile.max(1));
+        let sampling = s.sampling(w, h);
         let (x0, y0) = self.corner;
         let mut out = Vec::with_capacity(self.acc.len());
         for y in y0..(y0 + tile).min(h) {
@@ -290,7 +304,7 @@ impl TileJob<'_, '_> {
                     self.scene,
                     camera,
                     &s.path,
-                    s.seed,
+                    &sampling,
                     x,
                     y,
                     self.first,
@@ -558,6 +572,7 @@ impl Progressive {
         let block = block.max(1);
         let (camera, s) = (&self.camera, &self.settings);
         let (w, h) = (camera.width, camera.height);
+        let sampling = s.sampling(w, h);
         let rows: Option<Vec<Vec<Rgb>>> = self.pool.install(|| {
             (0..h.div_ceil(block))
                 .into_par_iter()
@@ -580,7 +595,7 @@ impl Progressive {
                                     scene,
                                     camera,
                                     &s.path,
-                                    s.seed,
+                                    &sampling,
                                     x,
                                     y,
                                     0,

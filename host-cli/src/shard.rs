@@ -16,6 +16,7 @@ use crate::error::{Error, Result};
 use crate::image::{write_atomically, Image};
 use crate::render::{shard_coverage, RenderSettings, Rendered, Shard};
 use crate::splats::resolve;
+use ember_kernel::sampler::SamplerKind;
 use ember_kernel::Rgb;
 use std::path::Path;
 
@@ -32,7 +33,11 @@ pub fn render_key(scene: &Path, width: u32, height: u32, s: &RenderSettings) -> 
         s.path.rr_depth,
         s.path.rr_prob,
         s.tile
-    )
+    ) + match s.sampler {
+        // Keys of independent renders stay as they were before samplers could be chosen.
+        SamplerKind::Independent => "",
+        SamplerKind::ZSobol => " sampler=zsobol",
+    }
 }
 
 /// A shard as read back: the own-sample sums of its pixels, per-pixel sample counts, its

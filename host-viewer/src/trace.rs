@@ -308,6 +308,7 @@ fn run(setup: &TraceSetup, shared: &Shared, notify: &dyn Fn()) {
         path: setup.path,
         spp: setup.target_spp,
         seed: setup.seed,
+        sampler: ember_kernel::sampler::SamplerKind::Independent,
         tile: setup.tile.max(1),
         threads: setup.threads,
         progress: false,

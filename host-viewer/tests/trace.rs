@@ -40,6 +40,7 @@ fn reference(s: &TraceSetup, camera: &ViewCamera, integrator: Integrator, spp: u
         path: s.path,
         spp,
         seed: s.seed,
+        sampler: ember_kernel::sampler::SamplerKind::Independent,
         tile: 16,
         threads: 2,
         progress: false,

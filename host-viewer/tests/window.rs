@@ -41,6 +41,7 @@ fn ember_render(
         path,
         spp,
         seed,
+        sampler: ember_kernel::sampler::SamplerKind::Independent,
         tile: 16,
         threads: 0,
         progress: false,

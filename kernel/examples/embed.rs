@@ -153,7 +153,7 @@ fn main() {
                         scene,
                         camera,
                         settings,
-                        DEFAULT_SEED,
+                        &ember_kernel::sampler::Sampling::independent(DEFAULT_SEED),
                         x,
                         y,
                         0,

@@ -193,6 +193,7 @@ fn ray_counts_follow_the_path_structure() {
                 },
                 spp: 4,
                 seed: 7,
+                sampler: ember_kernel::sampler::SamplerKind::Independent,
                 tile: 8,
                 threads,
                 progress: false,

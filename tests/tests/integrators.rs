@@ -140,6 +140,7 @@ fn glass_furnace_is_invisible_with_every_integrator() {
                 path,
                 spp,
                 seed: ember_kernel::sampler::DEFAULT_SEED,
+                sampler: ember_kernel::sampler::SamplerKind::Independent,
                 tile: 16,
                 threads: 0,
                 progress: false,

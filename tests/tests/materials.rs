@@ -34,6 +34,7 @@ fn render_with(
             path,
             spp,
             seed,
+            sampler: ember_kernel::sampler::SamplerKind::Independent,
             tile: 8,
             threads: 0,
             progress: false,

@@ -201,6 +201,7 @@ fn render_case(scene: &LoadedScene, case: &Case, label: &str) -> Rendered {
             path,
             spp: case.spp * spp_scale(),
             seed: case.seed.wrapping_add(seed_offset()),
+            sampler: ember_kernel::sampler::SamplerKind::Independent,
             tile: 16,
             threads: 0,
             progress: false,

@@ -25,6 +25,7 @@ fn settings(scene: &LoadedScene, integrator: Integrator, spp: u32, tile: u32) ->
         path,
         spp,
         seed: 0x5eed,
+        sampler: ember_kernel::sampler::SamplerKind::Independent,
         tile,
         threads: 2,
         progress: false,

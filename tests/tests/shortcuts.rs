@@ -32,6 +32,7 @@ fn render_with(
             path,
             spp,
             seed: 11,
+            sampler: ember_kernel::sampler::SamplerKind::Independent,
             tile: 16,
             threads: 0,
             progress: false,

@@ -80,6 +80,7 @@ fn render_data(
             path,
             spp,
             seed,
+            sampler: ember_kernel::sampler::SamplerKind::Independent,
             tile: 16,
             threads: 0,
             progress: false,

@@ -31,7 +31,7 @@ pub use path::{
 
 use crate::camera::Camera;
 use crate::geometry::Ray;
-use crate::sampler::{IndependentSampler, RayCounting, Sampler};
+use crate::sampler::{IndependentSampler, RayCounting, Sampler, SamplerKind, Sampling};
 use crate::scene::SceneView;
 use crate::Rgb;
 use glam::Vec2;
@@ -263,27 +263,58 @@ pub struct SampleResult {
 }
 
 /// Renders sample `index` of pixel `(x, y)`: the kernel's rendering entry point. The sample
-/// is keyed by `(seed, y·width + x, index)` and is a pure function of its key, the scene, the
+/// is keyed by `(sampling, (x, y), index)` and is a pure function of its key, the scene, the
 /// camera and the settings. Path tracers return their radiance; light tracing traces one
 /// light path (the `W·H·spp` light paths of an image are one per pixel sample) and BDPT one
 /// pair of subpaths, and both put their contributions to other pixels into `sink` (see
 /// [`crate::splat`] for accumulating them order-independently). `scratch` holds BDPT's
 /// subpaths (other estimators take `None`); BDPT without it renders nothing.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 pub fn render_sample<K: BdptSink>(
     integrator: Integrator,
     scene: &SceneView<'_>,
     camera: &Camera,
     settings: &PathSettings,
-    seed: u64,
+    sampling: &Sampling,
     x: u32,
     y: u32,
     index: u32,
     scratch: Option<&mut BdptScratch>,
     sink: &mut K,
 ) -> SampleResult {
-    let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
-    let mut sampler = RayCounting::new(IndependentSampler::new(seed, pixel, index));
+    match sampling.kind {
+        SamplerKind::Independent => {
+            let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
+            let sampler = IndependentSampler::new(sampling.seed, pixel, index);
+            sample_with(
+                integrator, scene, camera, settings, x, y, scratch, sink, sampler,
+            )
+        }
+        SamplerKind::ZSobol => {
+            let sampler = sampling.zsobol().start_pixel_sample(x, y, index, 0);
+            sample_with(
+                integrator, scene, camera, settings, x, y, scratch, sink, sampler,
+            )
+        }
+    }
+}
+
+/// [`render_sample`] with its sampler started.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn sample_with<S: Sampler, K: BdptSink>(
+    integrator: Integrator,
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    settings: &PathSettings,
+    x: u32,
+    y: u32,
+    scratch: Option<&mut BdptScratch>,
+    sink: &mut K,
+    sampler: S,
+) -> SampleResult {
+    let mut sampler = RayCounting::new(sampler);
     let l = match integrator {
         Integrator::LightTracing => {
             light_trace(scene, camera, settings, &mut sampler, sink);
@@ -359,7 +390,7 @@ pub fn render_pixel<K: BdptSink>(
     scene: &SceneView<'_>,
     camera: &Camera,
     settings: &PathSettings,
-    seed: u64,
+    sampling: &Sampling,
     x: u32,
     y: u32,
     first: u32,
@@ -374,7 +405,7 @@ pub fn render_pixel<K: BdptSink>(
             scene,
             camera,
             settings,
-            seed,
+            sampling,
             x,
             y,
             i,

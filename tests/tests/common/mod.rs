@@ -2,6 +2,7 @@
 //! file at a chosen size, and variance-aware image comparisons.
 #![allow(dead_code)]
 
+pub mod replicates;
 pub mod scenes;
 
 use ember_cli::image::Image;
@@ -77,6 +78,7 @@ pub fn render_scene_full(
             path,
             spp,
             seed,
+            sampler: ember_kernel::sampler::SamplerKind::Independent,
             tile,
             threads,
             progress: false,

@@ -1,4 +1,5 @@
-//! Deterministic sampling keyed by (seed, pixel, sample index, dimension).
+//! Deterministic sampling keyed by (seed, pixel, sample index, dimension): independent
+//! numbers ([`IndependentSampler`]) or Owen-scrambled Sobol' points ([`ZSobolSampler`]).
 //!
 //! Like pbrt-v4's `IndependentSampler::StartPixelSample`, every sample value is a pure function
 //! of its key, so an image does not depend on thread count, tile order or scheduling. Instead of
@@ -6,6 +7,56 @@
 //! dimension `d` of sample `i` of pixel `p` is `hash(seed, p, i, d)`.
 
 use glam::Vec2;
+
+mod zsobol;
+pub use zsobol::{morton2, owen_scramble, sobol_u32, ZSobolLayout, ZSobolSampler};
+
+/// Which sequence a render's samples come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SamplerKind {
+    /// Independent uniform numbers, hashed from (seed, pixel, sample index, dimension)
+    /// ([`IndependentSampler`]): the default.
+    #[default]
+    Independent,
+    /// Owen-scrambled Sobol' points with pixels in Morton order ([`ZSobolSampler`]): stratified
+    /// per pixel and blue-noise across pixels. Needs the render's samples per pixel up front.
+    ZSobol,
+}
+
+/// Everything a render's samples are keyed by besides (pixel, sample index, dimension): the
+/// sampler, the seed and, for [`SamplerKind::ZSobol`], the film and the samples per pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sampling {
+    pub kind: SamplerKind,
+    pub seed: u64,
+    layout: ZSobolLayout,
+}
+
+impl Sampling {
+    /// Samples of a `width × height` film rendered with `spp` samples per pixel (sample
+    /// indices `0..spp`; the independent sampler ignores the film and `spp`).
+    #[must_use]
+    pub fn new(kind: SamplerKind, seed: u64, spp: u32, width: u32, height: u32) -> Self {
+        Self {
+            kind,
+            seed,
+            layout: ZSobolLayout::new(seed, spp, width, height),
+        }
+    }
+
+    /// Independent samples with `seed`.
+    #[must_use]
+    pub fn independent(seed: u64) -> Self {
+        Self::new(SamplerKind::Independent, seed, 1, 1, 1)
+    }
+
+    /// The Sobol' layout (meaningful for [`SamplerKind::ZSobol`]).
+    #[inline]
+    #[must_use]
+    pub const fn zsobol(&self) -> &ZSobolLayout {
+        &self.layout
+    }
+}
 
 /// The source of uniform random numbers in `[0, 1)` for integrators and warps.
 pub trait Sampler {

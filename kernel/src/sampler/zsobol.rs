@@ -1,0 +1,492 @@
+//! Owen-scrambled Sobol' samples with pixels in Morton order (pbrt-v4's `ZSobolSampler`,
+//! after Ahmed and Wonka, "Screen-space blue-noise diffusion of Monte Carlo sampling error via
+//! hierarchical ordering of pixels", 2020).
+//!
+//! Every pixel sample is one point of a single (0, 2)-sequence in base 2, the first two Sobol'
+//! dimensions: the index of sample `i` of pixel `(x, y)` is the Morton code of the pixel
+//! followed by the bits of `i`, so the samples of one pixel form an elementary block of the
+//! sequence (stratified in 2D whatever the dimension pair), and neighbouring pixels get
+//! neighbouring blocks. Before it is used, the index's base-4 digits are shuffled by
+//! permutations that depend on the higher digits, the dimension and the seed, which
+//! decorrelates the dimensions and spreads the error across pixels as blue noise. Each
+//! dimension's points are then Owen-scrambled (Laine–Karras hash, pbrt's
+//! `FastOwenScrambler`), which keeps the nets' stratification and makes every point uniform.
+//!
+//! Differences from pbrt-v4: the seed also keys the digit permutations (pbrt keys only the
+//! scrambling with it), so that two seeds give independent randomisations, which is what the
+//! replicate-based tests need; values are the high 24 bits of the scrambled point, as the
+//! independent sampler's, so they are exact in f32 and never reach 1.
+//!
+//! All of it is integer arithmetic: the samples are bit-identical on every target.
+
+use super::{mix64, Sampler};
+use glam::Vec2;
+
+/// The generator matrices of Sobol's first two dimensions, as 32 columns of 32 bits (column
+/// `k` is what bit `k` of the index contributes). Dimension 0 is the van der Corput sequence
+/// (bit reversal); dimension 1 is Pascal's triangle mod 2.
+const SOBOL_MATRICES: [[u32; 32]; 2] = {
+    let mut m = [[0u32; 32]; 2];
+    let mut k = 0;
+    while k < 32 {
+        m[0][k] = 1 << (31 - k);
+        m[1][k] = if k == 0 {
+            1 << 31
+        } else {
+            m[1][k - 1] ^ (m[1][k - 1] >> 1)
+        };
+        k += 1;
+    }
+    m
+};
+
+/// Dimension 1's matrix applied a byte at a time: `SOBOL_1_BYTES[j][b]` is the XOR of the
+/// columns selected by byte value `b` at byte position `j` of the index.
+const SOBOL_1_BYTES: [[u32; 256]; 4] = {
+    let mut t = [[0u32; 256]; 4];
+    let mut j = 0;
+    while j < 4 {
+        let mut b = 0;
+        while b < 256 {
+            let mut v = 0u32;
+            let mut k = 0;
+            while k < 8 {
+                if b & (1 << k) != 0 {
+                    v ^= SOBOL_MATRICES[1][8 * j + k];
+                }
+                k += 1;
+            }
+            t[j][b] = v;
+            b += 1;
+        }
+        j += 1;
+    }
+    t
+};
+
+/// The Sobol' point `index` of dimension `dim` (0 or 1), unscrambled, as a 32-bit fraction.
+/// Index bits beyond 32 select nothing at 32-bit precision.
+#[inline]
+#[must_use]
+pub fn sobol_u32(index: u64, dim: usize) -> u32 {
+    let a = index as u32;
+    if dim == 0 {
+        return a.reverse_bits();
+    }
+    let t = &SOBOL_1_BYTES;
+    t[0][(a & 0xFF) as usize]
+        ^ t[1][((a >> 8) & 0xFF) as usize]
+        ^ t[2][((a >> 16) & 0xFF) as usize]
+        ^ t[3][(a >> 24) as usize]
+}
+
+/// [`sobol_u32`] of dimension 1 column by column (the definition; the tests compare).
+#[cfg(test)]
+fn sobol_1_by_columns(index: u64) -> u32 {
+    let mut a = index as u32;
+    let mut v = 0u32;
+    while a != 0 {
+        v ^= SOBOL_MATRICES[1][a.trailing_zeros() as usize];
+        a &= a - 1;
+    }
+    v
+}
+
+/// Laine and Karras's nested uniform scramble of a 32-bit fraction (pbrt-v4's
+/// `FastOwenScrambler`): each output bit depends only on the bits above it and the seed, so
+/// every elementary interval of a net is mapped onto one of the same size.
+#[inline]
+#[must_use]
+pub const fn owen_scramble(v: u32, seed: u32) -> u32 {
+    let mut v = v.reverse_bits();
+    v ^= v.wrapping_mul(0x3d20_adea);
+    v = v.wrapping_add(seed);
+    v = v.wrapping_mul((seed >> 16) | 1);
+    v ^= v.wrapping_mul(0x0552_6c56);
+    v ^= v.wrapping_mul(0x53a2_2864);
+    v.reverse_bits()
+}
+
+/// A hash of the digits above one digit and the dimension's key: two multiplies, and the
+/// digits' hashes do not depend on each other, so they overlap in the pipeline (pbrt's full
+/// 64-bit finaliser for every digit made a Cornell box sample 2x slower than independent
+/// sampling).
+#[inline]
+const fn permutation_hash(higher: u64, key: u64) -> u64 {
+    let h = (higher ^ key).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    (h ^ (h >> 32)).wrapping_mul(0xD6E8_FEB8_6659_FD93)
+}
+
+/// Which of the 24 permutations a digit gets (multiply-shift range reduction of the hash's
+/// high bits).
+#[inline]
+const fn permutation_of(higher: u64, key: u64) -> usize {
+    (((permutation_hash(higher, key) >> 32) * 24) >> 32) as usize
+}
+
+/// The 24 permutations of four base-4 digits.
+const PERMUTATIONS: [[u8; 4]; 24] = [
+    [0, 1, 2, 3],
+    [0, 1, 3, 2],
+    [0, 2, 1, 3],
+    [0, 2, 3, 1],
+    [0, 3, 2, 1],
+    [0, 3, 1, 2],
+    [1, 0, 2, 3],
+    [1, 0, 3, 2],
+    [1, 2, 0, 3],
+    [1, 2, 3, 0],
+    [1, 3, 2, 0],
+    [1, 3, 0, 2],
+    [2, 1, 0, 3],
+    [2, 1, 3, 0],
+    [2, 0, 1, 3],
+    [2, 0, 3, 1],
+    [2, 3, 0, 1],
+    [2, 3, 1, 0],
+    [3, 1, 2, 0],
+    [3, 1, 0, 2],
+    [3, 2, 1, 0],
+    [3, 2, 0, 1],
+    [3, 0, 2, 1],
+    [3, 0, 1, 2],
+];
+
+/// Interleaves the bits of `x` (even bits) and `y` (odd bits).
+#[inline]
+#[must_use]
+pub const fn morton2(x: u32, y: u32) -> u64 {
+    const fn spread(v: u32) -> u64 {
+        let mut v = v as u64;
+        v = (v | (v << 16)) & 0x0000_FFFF_0000_FFFF;
+        v = (v | (v << 8)) & 0x00FF_00FF_00FF_00FF;
+        v = (v | (v << 4)) & 0x0F0F_0F0F_0F0F_0F0F;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        (v | (v << 1)) & 0x5555_5555_5555_5555
+    }
+    spread(x) | (spread(y) << 1)
+}
+
+/// The sequence's layout for one film and sample count: fixed for a render, so that a sample's
+/// values depend only on (seed, pixel, sample index, dimension).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ZSobolLayout {
+    seed: u64,
+    log2_spp: u32,
+    base4_digits: u32,
+}
+
+impl ZSobolLayout {
+    /// The layout of a `width × height` film rendered with `spp` samples per pixel (rounded up
+    /// to a power of two: sample indices must stay below it).
+    #[must_use]
+    pub fn new(seed: u64, spp: u32, width: u32, height: u32) -> Self {
+        let log2_spp = spp.max(1).next_power_of_two().trailing_zeros();
+        let res = width.max(height).max(1).next_power_of_two();
+        let log2_res = res.trailing_zeros();
+        Self {
+            seed: mix64(seed ^ 0x2F5A_3C91_D1B5_4A32),
+            log2_spp,
+            base4_digits: log2_res + log2_spp.div_ceil(2),
+        }
+    }
+
+    /// The samples per pixel the layout has room for (a power of two).
+    #[inline]
+    #[must_use]
+    pub const fn capacity(&self) -> u32 {
+        1 << self.log2_spp
+    }
+
+    /// Starts sample `index` of pixel `(x, y)` at dimension `dimension` (pbrt-v4's
+    /// `StartPixelSample`). `index` must be below [`Self::capacity`]; beyond it the samples
+    /// would repeat another pixel's.
+    #[inline]
+    #[must_use]
+    pub fn start_pixel_sample(&self, x: u32, y: u32, index: u32, dimension: u32) -> ZSobolSampler {
+        debug_assert!(
+            index < self.capacity(),
+            "ZSobol sample index past the layout"
+        );
+        ZSobolSampler {
+            layout: *self,
+            morton_index: (morton2(x, y) << self.log2_spp) | u64::from(index),
+            dimension,
+        }
+    }
+}
+
+/// The samples of one pixel sample: each draw moves on by the dimensions it uses.
+#[derive(Clone, Copy, Debug)]
+pub struct ZSobolSampler {
+    layout: ZSobolLayout,
+    morton_index: u64,
+    dimension: u32,
+}
+
+impl ZSobolSampler {
+    /// The index into the Sobol' sequence for the current dimension: the Morton index with its
+    /// base-4 digits permuted, each by a permutation chosen by the digits above it, the
+    /// dimension and the seed (pbrt-v4's `GetSampleIndex`). An odd `log2 spp` leaves one
+    /// base-2 digit at the bottom, flipped by a hash of the same kind.
+    #[inline]
+    fn sample_index(&self) -> u64 {
+        let odd = self.layout.log2_spp & 1;
+        let key = self.dimension_hash();
+        let mut index = 0u64;
+        let mut i = self.layout.base4_digits;
+        while i > odd {
+            i -= 1;
+            let shift = 2 * i - odd;
+            let digit = (self.morton_index >> shift) & 3;
+            let p = permutation_of(self.morton_index >> (shift + 2), key);
+            index |= u64::from(PERMUTATIONS[p][digit as usize]) << shift;
+        }
+        if odd == 1 {
+            let flip = permutation_hash(self.morton_index >> 1, key) >> 63;
+            index |= (self.morton_index & 1) ^ flip;
+        }
+        index
+    }
+
+    /// A hash of (seed, dimension): the scrambling seeds of dimensions `dimension` and
+    /// `dimension + 1` are its halves, the permutations' key is its product by an odd constant.
+    #[inline]
+    fn dimension_hash(&self) -> u64 {
+        mix64(self.layout.seed ^ u64::from(self.dimension).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+    }
+
+    /// The current dimension.
+    #[inline]
+    #[must_use]
+    pub fn dimension(&self) -> u32 {
+        self.dimension
+    }
+}
+
+/// A scrambled 32-bit fraction as f32 in `[0, 1)`: its 24 high bits, exact.
+#[inline]
+fn to_unit(v: u32) -> f32 {
+    (v >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+impl Sampler for ZSobolSampler {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        let index = self.sample_index();
+        let seed = self.dimension_hash() as u32;
+        self.dimension = self.dimension.wrapping_add(1);
+        to_unit(owen_scramble(sobol_u32(index, 0), seed))
+    }
+
+    #[inline]
+    fn next_2d(&mut self) -> Vec2 {
+        let index = self.sample_index();
+        let h = self.dimension_hash();
+        let (s0, s1) = (h as u32, (h >> 32) as u32);
+        self.dimension = self.dimension.wrapping_add(2);
+        Vec2::new(
+            to_unit(owen_scramble(sobol_u32(index, 0), s0)),
+            to_unit(owen_scramble(sobol_u32(index, 1), s1)),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec;
+    use std::vec::Vec;
+
+    #[test]
+    fn sobol_matrices_match_pbrt() {
+        // pbrt-v4's SobolMatrices32, dimension 1, first columns.
+        let expected = [
+            0x8000_0000u32,
+            0xc000_0000,
+            0xa000_0000,
+            0xf000_0000,
+            0x8800_0000,
+            0xcc00_0000,
+            0xaa00_0000,
+            0xff00_0000,
+            0x8080_0000,
+            0xc0c0_0000,
+            0xa0a0_0000,
+            0xf0f0_0000,
+            0x8888_0000,
+        ];
+        assert_eq!(&SOBOL_MATRICES[1][..expected.len()], &expected);
+        assert_eq!(sobol_u32(1, 0), 0x8000_0000);
+        assert_eq!(sobol_u32(2, 0), 0x4000_0000);
+        assert_eq!(sobol_u32(3, 1), 0x4000_0000);
+        for i in (0..100_000u64).chain([u64::from(u32::MAX), 0xDEAD_BEEF, 1 << 40]) {
+            assert_eq!(sobol_u32(i, 1), sobol_1_by_columns(i), "{i}");
+        }
+    }
+
+    #[test]
+    fn morton_interleaves() {
+        assert_eq!(morton2(0, 0), 0);
+        assert_eq!(morton2(1, 0), 1);
+        assert_eq!(morton2(0, 1), 2);
+        assert_eq!(morton2(3, 3), 15);
+        assert_eq!(morton2(u32::MAX, 0), 0x5555_5555_5555_5555);
+    }
+
+    #[test]
+    fn owen_scramble_is_a_nested_bijection() {
+        // On the top 8 bits: a bijection of the 256 intervals of size 2^-8, and two points in
+        // one interval of size 2^-k stay in one interval of size 2^-k.
+        let seed = 0x1234_5678;
+        let mut seen = [false; 256];
+        for v in 0..256u32 {
+            let s = owen_scramble(v << 24, seed) >> 24;
+            assert!(!seen[s as usize]);
+            seen[s as usize] = true;
+        }
+        for a in 0..256u32 {
+            for b in 0..256u32 {
+                let common = (a ^ b).leading_zeros() - 24; // shared top bits of 8
+                let (sa, sb) = (owen_scramble(a << 24, seed), owen_scramble(b << 24, seed));
+                assert!((sa ^ sb).leading_zeros() >= common, "{a} {b}");
+            }
+        }
+    }
+
+    /// The 24-bit values of `n` draws of pixel `(x, y)`: sample `0..spp`, each started at
+    /// `dimension`, drawn with `next_2d` (or `next_1d` when `two_d` is false).
+    fn points(
+        layout: &ZSobolLayout,
+        x: u32,
+        y: u32,
+        spp: u32,
+        dim: u32,
+        two_d: bool,
+    ) -> Vec<(u32, u32)> {
+        (0..spp)
+            .map(|i| {
+                let mut s = layout.start_pixel_sample(x, y, i, dim);
+                let p = if two_d {
+                    s.next_2d()
+                } else {
+                    Vec2::new(s.next_1d(), 0.0)
+                };
+                for v in [p.x, p.y] {
+                    assert!((0.0..1.0).contains(&v));
+                }
+                ((p.x * 16_777_216.0) as u32, (p.y * 16_777_216.0) as u32)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn each_pixel_is_a_net_in_every_dimension_pair() {
+        // The samples of one pixel are an aligned block of 2^m points of the (0, 2)-sequence,
+        // Owen-scrambled: every elementary interval of area 2^-m, [a·2^-i, (a+1)·2^-i) ×
+        // [b·2^-(m-i), (b+1)·2^-(m-i)), holds exactly one of them; in 1D every interval of
+        // length 2^-m holds one.
+        for m in 0..=8u32 {
+            let spp = 1 << m;
+            for (w, h) in [(1, 1), (37, 23), (640, 480)] {
+                let layout = ZSobolLayout::new(0xC0FFEE ^ u64::from(m), spp, w, h);
+                for (x, y) in [(0, 0), (w / 2, h / 3), (w - 1, h - 1)] {
+                    for dim in [0, 2, 3, 7, 40, 1001] {
+                        let pts = points(&layout, x, y, spp, dim, true);
+                        for i in 0..=m {
+                            let mut cells = vec![0u32; 1 << m];
+                            for &(u, v) in &pts {
+                                let (cu, cv) = (u >> (24 - i), v >> (24 - (m - i)));
+                                cells[((cu << (m - i)) | cv) as usize] += 1;
+                            }
+                            assert!(
+                                cells.iter().all(|&c| c == 1),
+                                "m {m}, film {w}x{h}, pixel ({x}, {y}), dim {dim}, interval 2^-{i} x 2^-{}",
+                                m - i
+                            );
+                        }
+                        let pts = points(&layout, x, y, spp, dim, false);
+                        let mut cells = vec![0u32; 1 << m];
+                        for &(u, _) in &pts {
+                            cells[(u >> (24 - m)) as usize] += 1;
+                        }
+                        assert!(cells.iter().all(|&c| c == 1), "1D, m {m}, dim {dim}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_negative_control_is_not_a_net() {
+        // Independent samples are not stratified: the net test must be able to fail.
+        let spp = 64u32;
+        let mut s = crate::sampler::IndependentSampler::new(3, 0, 0);
+        let mut cells = [0u32; 64];
+        for _ in 0..spp {
+            let p = s.next_2d();
+            cells[((p.x * 8.0) as usize) * 8 + (p.y * 8.0) as usize] += 1;
+        }
+        assert!(cells.iter().any(|&c| c != 1));
+    }
+
+    #[test]
+    fn values_are_a_pure_function_of_the_key() {
+        let layout = ZSobolLayout::new(11, 16, 64, 48);
+        let mut a = layout.start_pixel_sample(5, 7, 3, 0);
+        let mut b = layout.start_pixel_sample(5, 7, 3, 0);
+        for _ in 0..50 {
+            assert_eq!(a.next_2d(), b.next_2d());
+            assert_eq!(a.next_1d().to_bits(), b.next_1d().to_bits());
+        }
+        // Starting at dimension 5 is drawing 2 + 2 + 1 dimensions from 0 first.
+        let mut c = layout.start_pixel_sample(5, 7, 3, 0);
+        c.next_2d();
+        c.next_2d();
+        c.next_1d();
+        assert_eq!(c.dimension(), 5);
+        let mut d = layout.start_pixel_sample(5, 7, 3, 5);
+        assert_eq!(c.next_2d(), d.next_2d());
+        // Other seeds, pixels and indices give other values.
+        let v = |seed: u64, x: u32, i: u32| {
+            ZSobolLayout::new(seed, 16, 64, 48)
+                .start_pixel_sample(x, 7, i, 0)
+                .next_2d()
+        };
+        assert_ne!(v(11, 5, 3), v(12, 5, 3));
+        assert_ne!(v(11, 5, 3), v(11, 6, 3));
+        assert_ne!(v(11, 5, 3), v(11, 5, 4));
+    }
+
+    #[test]
+    fn values_are_uniform_over_pixels_and_seeds() {
+        // Mean and a 16-bin chi-square of dimensions 0, 1 and 9 over every sample of a film.
+        let (w, h, spp) = (64u32, 64u32, 8u32);
+        for dim in [0u32, 1, 9] {
+            let mut hist = [0u32; 16];
+            let mut sum = 0.0f64;
+            let mut n = 0u32;
+            for seed in 0..4u64 {
+                let layout = ZSobolLayout::new(seed, spp, w, h);
+                for y in 0..h {
+                    for x in 0..w {
+                        for i in 0..spp {
+                            let v = layout.start_pixel_sample(x, y, i, dim).next_1d();
+                            sum += f64::from(v);
+                            hist[(v * 16.0) as usize] += 1;
+                            n += 1;
+                        }
+                    }
+                }
+            }
+            assert!((sum / f64::from(n) - 0.5).abs() < 0.002, "dim {dim}");
+            let expected = f64::from(n) / 16.0;
+            let chi2: f64 = hist
+                .iter()
+                .map(|&c| (f64::from(c) - expected).powi(2) / expected)
+                .sum();
+            // Stratified points are more uniform than random ones: far below the 0.001 point.
+            assert!(chi2 < 37.7, "dim {dim}: chi2 {chi2}");
+        }
+    }
+}
