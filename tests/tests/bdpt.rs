@@ -275,85 +275,20 @@ fn student_t_tails_match_tables() {
 // 2. TinyRender's reference
 // ---------------------------------------------------------------------------------------------
 
-/// Light tracing and BDPT against `cbox_path_explicit_rr_REF.exr` (800×600, 128 spp,
-/// TinyRender's explicit path tracer, unknown seed), as `reference.rs` tests the path tracers:
-/// rendered at a quarter of the resolution in each direction and compared with the reference
-/// box-filtered to that size, by the image mean and 8×6 block means (z-tests with α = 0.01
-/// shared by all of them, Šidák), plus the one-sided per-pixel squared-error statistic.
-///
-/// Variances: ours from 32 replicates (splats correlate pixels, so block variances are taken
-/// from the replicates' block means, never summed over pixels). The reference's: a
-/// quarter-resolution pixel averages 16 pixels × 128 samples = 2048 samples of TinyRender's
-/// explicit estimator; its per-sample variance is measured with ember's explicit path
-/// tracer on the same scene (the same estimator), and pixels of a path tracer are
-/// independent, so a block's variance is the sum of its pixels' over the count².
-/// The negative control: light tracing 2% too bright must be rejected.
+/// Light tracing and BDPT against `cbox_path_explicit_rr_REF.exr`, as `reference.rs` tests the
+/// path tracers: at a quarter of the resolution, by the image mean and 8×6 block means plus the
+/// per-pixel squared-error statistic ([`TinyRenderReference`]), α = 0.01 shared by all of them
+/// (Šidák). Our variances from 32 replicates (splats correlate pixels, so block variances are
+/// taken from the replicates' block means, never summed over pixels). The negative control:
+/// light tracing 2% too bright must be rejected.
 #[test]
 #[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
 fn light_tracing_and_bdpt_match_the_tinyrender_reference() {
-    const FACTOR: u32 = 4;
-    const RW: u32 = 800 / FACTOR;
-    const RH: u32 = 600 / FACTOR;
-    const RBX: u32 = 8;
-    const RBY: u32 = 6;
-    const REF_SAMPLES: f64 = 128.0 * (FACTOR * FACTOR) as f64;
-    const EXPLICIT_SPP: u32 = 16;
     const KR: usize = 32;
-    let toml = cbox_scene("cbox_path_explicit_rr.toml");
-    let scene = LoadedScene::load(&toml).unwrap();
-    let (_, path, _) = scene.path_settings().unwrap();
-    let (view, camera) = (scene.data.view(), scene.camera(RW, RH));
-    let reference = read_exr(&cbox_scene("cbox_path_explicit_rr_REF.exr"))
-        .unwrap()
-        .downsample(FACTOR, FACTOR);
-    assert_eq!((reference.width, reference.height), (RW, RH));
-    let explicit = render(
-        &view,
-        &camera,
-        &settings(Integrator::PathExplicit, path, EXPLICIT_SPP, 0x7E_F001),
-    );
-    assert_clean(&explicit, "explicit");
-    // Variance of a reference pixel's mean: the per-sample variance over 2048 samples.
-    let ref_var: Vec<DVec3> = explicit
-        .variance
-        .pixels
-        .iter()
-        .map(|v| v.as_dvec3() * f64::from(EXPLICIT_SPP) / REF_SAMPLES)
-        .collect();
-    let ref_pixels: Vec<DVec3> = reference.pixels.iter().map(|p| p.as_dvec3()).collect();
-    // Means and variances of the reference's blocks (independent pixels).
-    let ref_blocks = |bx: u32, by: u32| {
-        let one = Replicates {
-            width: RW,
-            height: RH,
-            images: vec![ref_pixels.clone()],
-        }
-        .blocks(bx, by);
-        let vars = Replicates {
-            width: RW,
-            height: RH,
-            images: vec![ref_var.clone()],
-        }
-        .blocks(bx, by);
-        let n = f64::from(RW * RH / (bx * by));
-        Estimate {
-            width: bx,
-            height: by,
-            mean: one.images[0].clone(),
-            var: vars.images[0].iter().map(|v| *v / n).collect(),
-            dof: f64::INFINITY,
-        }
-    };
-    let (ref_mean, ref_block) = (ref_blocks(1, 1), ref_blocks(RBX, RBY));
-    let ref_est = Estimate {
-        width: RW,
-        height: RH,
-        mean: ref_pixels.clone(),
-        var: ref_var.clone(),
-        dof: f64::from(EXPLICIT_SPP - 1),
-    };
+    let reference = TinyRenderReference::load(4, 8, 6);
+    let (view, camera) = (reference.scene.data.view(), reference.camera());
     let cases = [(LT, 32u32), (BDPT, 32)];
-    let tests = (3 * (1 + RBX * RBY) as usize + 1) * (cases.len() + 1);
+    let tests = reference.tests() * (cases.len() + 1);
     let (a, z_crit) = (sidak(ALPHA, tests), critical_z(ALPHA, tests));
     let mut failures = Vec::new();
     for (integrator, spp) in cases {
@@ -363,56 +298,17 @@ fn light_tracing_and_bdpt_match_the_tinyrender_reference() {
             &view,
             &camera,
             integrator,
-            path,
+            reference.path,
             spp / KR as u32,
             KR,
             &label,
         );
         let seconds = start.elapsed().as_secs_f64();
-        let mut check = |label: &str, reps: &Replicates, must_fail: bool| {
-            let m = welch(
-                &format!("{label} mean"),
-                &reps.image_mean().estimate(),
-                &ref_mean,
-            );
-            let b = welch(
-                &format!("{label} block"),
-                &reps.blocks(RBX, RBY).estimate(),
-                &ref_block,
-            );
-            let (ratio, pz) = mse_z(&reps.estimate(), &ref_est);
-            let ours = reps.image_mean().estimate().mean[0];
-            println!(
-                "{label}: mean {ours:.4} (reference {:.4}) | max|z| mean {:.2}, blocks {:.2} | pixel mse/var {ratio:.3} (z {pz:.2})\n    worst block: {}",
-                ref_mean.mean[0],
-                m.z(),
-                b.z(),
-                b.worst
-            );
-            let mut f: Vec<String> = [m, b]
-                .into_iter()
-                .filter(|r| r.min_p < a)
-                .map(|r| r.worst)
-                .collect();
-            if pz > z_crit {
-                f.push(format!("{label}: pixel mse/var {ratio:.3}, z {pz:.2}"));
-            }
-            if must_fail {
-                assert!(
-                    !f.is_empty(),
-                    "{label}: the negative control went unnoticed"
-                );
-            } else {
-                failures.extend(f);
-            }
-        };
-        check(&format!("{label} ({seconds:.1} s)"), &reps, false);
+        failures.extend(reference.check(&format!("{label} ({seconds:.1} s)"), &reps, a, z_crit));
         if integrator == LT {
-            check(
-                &format!("{label} x 1.02 (negative control)"),
-                &reps.map(|_, p| p * 1.02),
-                true,
-            );
+            let control = format!("{label} x 1.02 (negative control)");
+            let f = reference.check(&control, &reps.map(|_, p| p * 1.02), a, z_crit);
+            assert!(!f.is_empty(), "{control} went unnoticed");
         }
     }
     println!("critical |z| = {z_crit:.2} over {tests} tests");

@@ -20,10 +20,8 @@ mod common;
 
 use common::replicates::*;
 use common::*;
-use ember_cli::image::read_exr;
 use ember_cli::render::{render, RenderSettings, Shard};
 use ember_cli::LoadedScene;
-use ember_kernel::glam::DVec3;
 use ember_kernel::integrator::{Integrator, MisHeuristic, PathSettings};
 use ember_kernel::sampler::SamplerKind;
 
@@ -43,73 +41,17 @@ fn zsobol(integrator: Integrator, path: PathSettings, spp: u32) -> RenderSetting
     }
 }
 
-/// Every integrator with ZSobol against `cbox_path_explicit_rr_REF.exr` (800×600, 128 spp of
-/// TinyRender's explicit path tracer), as `bdpt.rs` tests light tracing and BDPT: a quarter of
-/// the resolution, the reference box-filtered to it, its variance from ember's explicit path
-/// tracer (same estimator, independent samples, so its pixels' own variances are valid);
-/// image mean and 8×6 block means by Welch t-tests and the one-sided per-pixel squared-error
-/// statistic, α = 0.01 shared (Šidák). Replicates: 16 of `spp / 16` samples each.
+/// Every integrator with ZSobol against `cbox_path_explicit_rr_REF.exr` at a quarter of its
+/// resolution ([`TinyRenderReference`], as `bdpt.rs` tests light tracing and BDPT): image
+/// mean and 8×6 block means by Welch t-tests and the per-pixel squared-error statistic,
+/// α = 0.01 shared (Šidák); MIS 2% too bright must be rejected. Replicates: 16 of `spp / 16`
+/// samples each.
 #[test]
 #[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
 fn every_integrator_with_zsobol_matches_the_tinyrender_reference() {
-    const FACTOR: u32 = 4;
-    const RW: u32 = 800 / FACTOR;
-    const RH: u32 = 600 / FACTOR;
-    const RBX: u32 = 8;
-    const RBY: u32 = 6;
-    const REF_SAMPLES: f64 = 128.0 * (FACTOR * FACTOR) as f64;
-    const EXPLICIT_SPP: u32 = 16;
     const KR: usize = 16;
-    let toml = cbox_scene("cbox_path_explicit_rr.toml");
-    let scene = LoadedScene::load(&toml).unwrap();
-    let (_, path, _) = scene.path_settings().unwrap();
-    let (view, camera) = (scene.data.view(), scene.camera(RW, RH));
-    let reference = read_exr(&cbox_scene("cbox_path_explicit_rr_REF.exr"))
-        .unwrap()
-        .downsample(FACTOR, FACTOR);
-    let explicit = render(
-        &view,
-        &camera,
-        &settings(Integrator::PathExplicit, path, EXPLICIT_SPP, 0x7E_F002),
-    );
-    assert_clean(&explicit, "explicit");
-    let ref_var: Vec<DVec3> = explicit
-        .variance
-        .pixels
-        .iter()
-        .map(|v| v.as_dvec3() * f64::from(EXPLICIT_SPP) / REF_SAMPLES)
-        .collect();
-    let ref_pixels: Vec<DVec3> = reference.pixels.iter().map(|p| p.as_dvec3()).collect();
-    let ref_blocks = |bx: u32, by: u32| {
-        let one = Replicates {
-            width: RW,
-            height: RH,
-            images: vec![ref_pixels.clone()],
-        }
-        .blocks(bx, by);
-        let vars = Replicates {
-            width: RW,
-            height: RH,
-            images: vec![ref_var.clone()],
-        }
-        .blocks(bx, by);
-        let n = f64::from(RW * RH / (bx * by));
-        Estimate {
-            width: bx,
-            height: by,
-            mean: one.images[0].clone(),
-            var: vars.images[0].iter().map(|v| *v / n).collect(),
-            dof: f64::INFINITY,
-        }
-    };
-    let (ref_mean, ref_block) = (ref_blocks(1, 1), ref_blocks(RBX, RBY));
-    let ref_est = Estimate {
-        width: RW,
-        height: RH,
-        mean: ref_pixels.clone(),
-        var: ref_var.clone(),
-        dof: f64::from(EXPLICIT_SPP - 1),
-    };
+    let reference = TinyRenderReference::load(4, 8, 6);
+    let (view, camera) = (reference.scene.data.view(), reference.camera());
     // Samples per pixel in all (over the replicates); implicit path tracing needs many more
     // to find the small light.
     let cases = INTEGRATORS.map(|i| match i {
@@ -117,7 +59,7 @@ fn every_integrator_with_zsobol_matches_the_tinyrender_reference() {
         Integrator::Bdpt(_) => (i, 32),
         _ => (i, 64),
     });
-    let tests = (3 * (1 + RBX * RBY) as usize + 1) * (cases.len() + 1);
+    let tests = reference.tests() * (cases.len() + 1);
     let (a, z_crit) = (sidak(ALPHA, tests), critical_z(ALPHA, tests));
     let mut failures = Vec::new();
     for (integrator, spp) in cases {
@@ -126,55 +68,16 @@ fn every_integrator_with_zsobol_matches_the_tinyrender_reference() {
         let reps = Replicates::render_with(
             &view,
             &camera,
-            &zsobol(integrator, path, spp / KR as u32),
+            &zsobol(integrator, reference.path, spp / KR as u32),
             KR,
             &label,
         );
         let seconds = start.elapsed().as_secs_f64();
-        let mut check = |label: &str, reps: &Replicates, must_fail: bool| {
-            let m = welch(
-                &format!("{label} mean"),
-                &reps.image_mean().estimate(),
-                &ref_mean,
-            );
-            let b = welch(
-                &format!("{label} block"),
-                &reps.blocks(RBX, RBY).estimate(),
-                &ref_block,
-            );
-            let (ratio, pz) = mse_z(&reps.estimate(), &ref_est);
-            println!(
-                "{label}: mean {:.4} (reference {:.4}) | max|z| mean {:.2}, blocks {:.2} | pixel mse/var {ratio:.3} (z {pz:.2})\n    worst block: {}",
-                reps.image_mean().estimate().mean[0],
-                ref_mean.mean[0],
-                m.z(),
-                b.z(),
-                b.worst
-            );
-            let mut f: Vec<String> = [m, b]
-                .into_iter()
-                .filter(|r| r.min_p < a)
-                .map(|r| r.worst)
-                .collect();
-            if pz > z_crit {
-                f.push(format!("{label}: pixel mse/var {ratio:.3}, z {pz:.2}"));
-            }
-            if must_fail {
-                assert!(
-                    !f.is_empty(),
-                    "{label}: the negative control went unnoticed"
-                );
-            } else {
-                failures.extend(f);
-            }
-        };
-        check(&format!("{label} ({seconds:.1} s)"), &reps, false);
+        failures.extend(reference.check(&format!("{label} ({seconds:.1} s)"), &reps, a, z_crit));
         if integrator == Integrator::PathMis {
-            check(
-                &format!("{label} x 1.02 (negative control)"),
-                &reps.map(|_, p| p * 1.02),
-                true,
-            );
+            let control = format!("{label} x 1.02 (negative control)");
+            let f = reference.check(&control, &reps.map(|_, p| p * 1.02), a, z_crit);
+            assert!(!f.is_empty(), "{control} went unnoticed");
         }
     }
     println!("critical |z| = {z_crit:.2} over {tests} tests");

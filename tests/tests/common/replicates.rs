@@ -482,3 +482,133 @@ pub fn against_value(
         welch(&format!("{label} mean"), &m, &ref_mean),
     ]
 }
+
+/// TinyRender's `cbox_path_explicit_rr_REF.exr` (800×600, 128 spp of its explicit path tracer,
+/// unknown seed) as an estimate at `1/factor` of its resolution in each direction: its pixels
+/// box-filtered, with variances from ember's explicit path tracer on the same scene (the same
+/// estimator, independent samples, so its pixels' own variances are valid and its pixels are
+/// independent: a block's variance is the sum of its pixels' over the count²). Comparisons:
+/// the image mean and `bx × by` block means by Welch t-tests and the one-sided per-pixel
+/// squared-error statistic ([`Self::check`]).
+pub struct TinyRenderReference {
+    pub scene: ember_cli::LoadedScene,
+    pub path: PathSettings,
+    pub width: u32,
+    pub height: u32,
+    pub bx: u32,
+    pub by: u32,
+    mean: Estimate,
+    blocks: Estimate,
+    pixels: Estimate,
+}
+
+impl TinyRenderReference {
+    /// Tests one [`Self::check`] makes.
+    pub const fn tests(&self) -> usize {
+        3 * (1 + self.bx * self.by) as usize + 1
+    }
+
+    pub fn load(factor: u32, bx: u32, by: u32) -> Self {
+        const EXPLICIT_SPP: u32 = 16;
+        let (w, h) = (800 / factor, 600 / factor);
+        let ref_samples = 128.0 * f64::from(factor * factor);
+        let scene =
+            ember_cli::LoadedScene::load(&cbox_scene("cbox_path_explicit_rr.toml")).unwrap();
+        let (_, path, _) = scene.path_settings().unwrap();
+        let reference = ember_cli::image::read_exr(&cbox_scene("cbox_path_explicit_rr_REF.exr"))
+            .unwrap()
+            .downsample(factor, factor);
+        assert_eq!((reference.width, reference.height), (w, h));
+        let explicit = render(
+            &scene.data.view(),
+            &scene.camera(w, h),
+            &settings(Integrator::PathExplicit, path, EXPLICIT_SPP, 0x7E_F001),
+        );
+        assert_clean(&explicit, "explicit");
+        // Variance of a reference pixel's mean: the per-sample variance over its samples.
+        let var: Vec<DVec3> = explicit
+            .variance
+            .pixels
+            .iter()
+            .map(|v| v.as_dvec3() * f64::from(EXPLICIT_SPP) / ref_samples)
+            .collect();
+        let pixels: Vec<DVec3> = reference.pixels.iter().map(|p| p.as_dvec3()).collect();
+        let blocks = |bx: u32, by: u32| {
+            let one = Replicates {
+                width: w,
+                height: h,
+                images: vec![pixels.clone()],
+            }
+            .blocks(bx, by);
+            let vars = Replicates {
+                width: w,
+                height: h,
+                images: vec![var.clone()],
+            }
+            .blocks(bx, by);
+            let n = f64::from(w * h / (bx * by));
+            Estimate {
+                width: bx,
+                height: by,
+                mean: one.images[0].clone(),
+                var: vars.images[0].iter().map(|v| *v / n).collect(),
+                dof: f64::INFINITY,
+            }
+        };
+        Self {
+            mean: blocks(1, 1),
+            blocks: blocks(bx, by),
+            pixels: Estimate {
+                width: w,
+                height: h,
+                mean: pixels,
+                var,
+                dof: f64::from(EXPLICIT_SPP - 1),
+            },
+            scene,
+            path,
+            width: w,
+            height: h,
+            bx,
+            by,
+        }
+    }
+
+    /// The camera of the reference's film.
+    pub fn camera(&self) -> Camera {
+        self.scene.camera(self.width, self.height)
+    }
+
+    /// Compares replicates with the reference (significance `a` per test, `z_crit` for the
+    /// one-sided squared-error statistic); prints the figures and returns what failed.
+    pub fn check(&self, label: &str, reps: &Replicates, a: f64, z_crit: f64) -> Vec<String> {
+        let m = welch(
+            &format!("{label} mean"),
+            &reps.image_mean().estimate(),
+            &self.mean,
+        );
+        let b = welch(
+            &format!("{label} block"),
+            &reps.blocks(self.bx, self.by).estimate(),
+            &self.blocks,
+        );
+        let (ratio, pz) = mse_z(&reps.estimate(), &self.pixels);
+        println!(
+            "{label}: mean {:.4} (reference {:.4}) | max|z| mean {:.2}, blocks {:.2} | pixel mse/var {ratio:.3} (z {pz:.2})\n    worst block: {}",
+            reps.image_mean().estimate().mean[0],
+            self.mean.mean[0],
+            m.z(),
+            b.z(),
+            b.worst
+        );
+        let mut f: Vec<String> = [m, b]
+            .into_iter()
+            .filter(|r| r.min_p < a)
+            .map(|r| r.worst)
+            .collect();
+        if pz > z_crit {
+            f.push(format!("{label}: pixel mse/var {ratio:.3}, z {pz:.2}"));
+        }
+        f
+    }
+}
