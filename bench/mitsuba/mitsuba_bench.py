@@ -33,6 +33,7 @@ import argparse
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -365,6 +366,9 @@ def main():
     ap.add_argument("--budget", type=float, default=10.0, help="seconds: a ladder stops after the first slower rung")
     ap.add_argument("--max-spp", type=int, default=65536)
     ap.add_argument("--variants", default="scalar_rgb,llvm_ad_rgb")
+    ap.add_argument("--ember-samplers", default="independent",
+                    help="comma-separated ember samplers, one ladder and table each (independent, zsobol); "
+                         "ladders other than the independent one go to bench_<sampler>.csv/.svg")
     ap.add_argument("--out", default=HERE)
     args = ap.parse_args()
 
@@ -471,43 +475,49 @@ def main():
                      f"nan,{r['rmse']:.6e},{r['rel_mse']:.6e},{r['bias']:.6e}\n")
     log(f"wrote {results}")
 
-    # 5. ember's ladder against the same reference, plotted with Mitsuba's.
-    log(f"\n== ember bench: mis, {args.threads} threads")
-    subprocess.run(
-        [args.ember, "bench", args.scene, "--reference", reference_path, "--integrators", "mis",
-         "--threads", str(args.threads), "--budget", str(args.budget), "--max-spp", str(args.max_spp),
-         "--plot-also", results, "-o", args.out],
-        check=True)
-    ember_rows = []
-    with open(os.path.join(args.out, "bench.csv")) as fh:
-        header = fh.readline().strip().split(",")
-        for line in fh:
-            ember_rows.append(dict(zip(header, line.strip().split(","))))
-    ember_pts = [(float(r["seconds"]), float(r["rel_mse"])) for r in ember_rows]
-
-    # 6. Time ratios at equal error.
-    say("\n## Time to equal relative MSE\n")
-    say("ember `mis` time / Mitsuba time, interpolated linearly in log-log between ladder rungs "
-        "(below 1: ember is faster). Every relative MSE includes the reference's own noise "
-        f"({ref_noise:.1e}), so only errors above 10 times that are listed.")
-    say()
-    say("| relative MSE | ember mis (s) | " + " | ".join(f"{v} (s) | ratio" for v in variants) + " |")
-    say("|---|---|" + "---|---|" * len(variants))
+    # 5. ember's ladders (one per sampler) against the same reference, plotted with Mitsuba's.
     curves = {v: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == f"mitsuba_{v}"] for v in variants}
-    lo = max([min(e for _, e in ember_pts), 10 * ref_noise] + [min(e for _, e in c) for c in curves.values()])
-    hi = min([max(e for _, e in ember_pts)] + [max(e for _, e in c) for c in curves.values()])
-    targets = []
-    if lo < hi:
-        n = 6
-        targets = [math.exp(math.log(hi) + (math.log(lo) - math.log(hi)) * i / (n - 1)) for i in range(n)]
-    for target in targets:
-        te = interp_time(ember_pts, target)
-        cells = [f"{te:.3f}" if te else "-"]
-        for v in variants:
-            tm = interp_time(curves[v], target)
-            cells += [f"{tm:.3f}", f"{te / tm:.2f}"] if te and tm else ["-", "-"]
-        say(f"| {target:.3e} | " + " | ".join(cells) + " |")
-    say()
+    for sampler in args.ember_samplers.split(","):
+        suffix = "" if sampler == "independent" else f"_{sampler}"
+        out_dir = args.out if not suffix else os.path.join(build, f"ember{suffix}")
+        log(f"\n== ember bench: mis, {sampler} sampler, {args.threads} threads")
+        subprocess.run(
+            [args.ember, "bench", args.scene, "--reference", reference_path, "--integrators", "mis",
+             "--threads", str(args.threads), "--budget", str(args.budget), "--max-spp", str(args.max_spp),
+             "--sampler", sampler, "--plot-also", results, "-o", out_dir],
+            check=True)
+        if suffix:
+            for f in ("bench.csv", "bench.svg"):
+                shutil.copy(os.path.join(out_dir, f), os.path.join(args.out, f"bench{suffix}.{f.split('.')[1]}"))
+        ember_rows = []
+        with open(os.path.join(out_dir, "bench.csv")) as fh:
+            header = fh.readline().strip().split(",")
+            for line in fh:
+                ember_rows.append(dict(zip(header, line.strip().split(","))))
+        ember_pts = [(float(r["seconds"]), float(r["rel_mse"])) for r in ember_rows]
+
+        # 6. Time ratios at equal error.
+        say(f"\n## Time to equal relative MSE (ember `mis`, {sampler} sampler)\n")
+        say("ember `mis` time / Mitsuba time, interpolated linearly in log-log between ladder rungs "
+            "(below 1: ember is faster). Every relative MSE includes the reference's own noise "
+            f"({ref_noise:.1e}), so only errors above 10 times that are listed.")
+        say()
+        say("| relative MSE | ember mis (s) | " + " | ".join(f"{v} (s) | ratio" for v in variants) + " |")
+        say("|---|---|" + "---|---|" * len(variants))
+        lo = max([min(e for _, e in ember_pts), 10 * ref_noise] + [min(e for _, e in c) for c in curves.values()])
+        hi = min([max(e for _, e in ember_pts)] + [max(e for _, e in c) for c in curves.values()])
+        targets = []
+        if lo < hi:
+            n = 6
+            targets = [math.exp(math.log(hi) + (math.log(lo) - math.log(hi)) * i / (n - 1)) for i in range(n)]
+        for target in targets:
+            te = interp_time(ember_pts, target)
+            cells = [f"{te:.3f}" if te else "-"]
+            for v in variants:
+                tm = interp_time(curves[v], target)
+                cells += [f"{tm:.3f}", f"{te / tm:.2f}"] if te and tm else ["-", "-"]
+            say(f"| {target:.3e} | " + " | ".join(cells) + " |")
+        say()
     say(f"Measured {time.strftime('%Y-%m-%d %H:%M')} on {os.cpu_count()} cores; ladders stop after the first rung "
         f"over {args.budget} s. Curves: bench.svg; rows: bench.csv (ember), results.csv (Mitsuba).")
     with open(os.path.join(args.out, "table.md"), "w") as fh:
