@@ -366,6 +366,9 @@ def main():
     ap.add_argument("--budget", type=float, default=10.0, help="seconds: a ladder stops after the first slower rung")
     ap.add_argument("--max-spp", type=int, default=65536)
     ap.add_argument("--variants", default="scalar_rgb,llvm_ad_rgb")
+    ap.add_argument("--mitsuba-samplers", default="independent",
+                    help="comma-separated Mitsuba samplers, a ladder each per variant (independent, stratified, "
+                         "multijitter, orthogonal, ldsampler)")
     ap.add_argument("--ember-samplers", default="independent",
                     help="comma-separated ember samplers, one ladder and table each (independent, zsobol); "
                          "ladders other than the independent one go to bench_<sampler>.csv/.svg")
@@ -457,16 +460,29 @@ def main():
         f"relative difference of block means: max {np.max(np.abs(m_blocks - ref_blocks) / np.maximum(ref_blocks, 1e-3)):.2%}")
     say(f"- verdict: {'SAME IMAGE within noise' if ok else 'DIFFERENT IMAGES: the timing comparison below is not valid'}")
 
-    # 4. Mitsuba ladders.
+    # 4. Mitsuba ladders: every variant with every sampler (the scene file's sampler swapped;
+    # samplers that need square or prime-power counts round the ladder's spp their way, which
+    # changes nothing here: only the measured time and error are compared).
     rows = []
-    for variant in variants:
-        log(f"\n== Mitsuba ladder: {variant}, {args.threads} threads")
-        mi, dr = set_variant(variant, args.threads)
-        scene = mi.load_file(xml)
-        mitsuba_render(mi, dr, scene, 1, 999_999)  # warm-up (LLVM compiles its kernels here)
-        label = f"mitsuba_{variant}"
-        rows += ladder(label, lambda spp, seed: mitsuba_render(mi, dr, scene, spp, seed), args.budget,
-                       args.max_spp, reference_path, args.ember, build, scene_name, pixels)
+    series = []  # (column name, ladder label)
+    for msampler in args.mitsuba_samplers.split(","):
+        sxml = xml
+        if msampler != "independent":
+            with open(xml) as fh:
+                text = fh.read().replace('<sampler type="independent">', f'<sampler type="{msampler}">')
+            sxml = os.path.join(build, f"scene_{msampler}.xml")
+            with open(sxml, "w") as fh:
+                fh.write(text)
+        for variant in variants:
+            name = variant if msampler == "independent" else f"{variant} {msampler}"
+            label = f"mitsuba_{variant}" if msampler == "independent" else f"mitsuba_{variant}_{msampler}"
+            log(f"\n== Mitsuba ladder: {name}, {args.threads} threads")
+            mi, dr = set_variant(variant, args.threads)
+            scene = mi.load_file(sxml)
+            mitsuba_render(mi, dr, scene, 1, 999_999)  # warm-up (LLVM compiles its kernels here)
+            rows += ladder(label, lambda spp, seed: mitsuba_render(mi, dr, scene, spp, seed), args.budget,
+                           args.max_spp, reference_path, args.ember, build, scene_name, pixels)
+            series.append((name, label))
     results = os.path.join(args.out, "results.csv")
     with open(results, "w") as fh:
         fh.write(CSV_COLUMNS + "\n")
@@ -476,7 +492,7 @@ def main():
     log(f"wrote {results}")
 
     # 5. ember's ladders (one per sampler) against the same reference, plotted with Mitsuba's.
-    curves = {v: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == f"mitsuba_{v}"] for v in variants}
+    curves = {name: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == label] for name, label in series}
     for sampler in args.ember_samplers.split(","):
         suffix = "" if sampler == "independent" else f"_{sampler}"
         out_dir = args.out if not suffix else os.path.join(build, f"ember{suffix}")
@@ -502,8 +518,8 @@ def main():
             "(below 1: ember is faster). Every relative MSE includes the reference's own noise "
             f"({ref_noise:.1e}), so only errors above 10 times that are listed.")
         say()
-        say("| relative MSE | ember mis (s) | " + " | ".join(f"{v} (s) | ratio" for v in variants) + " |")
-        say("|---|---|" + "---|---|" * len(variants))
+        say("| relative MSE | ember mis (s) | " + " | ".join(f"{v} (s) | ratio" for v, _ in series) + " |")
+        say("|---|---|" + "---|---|" * len(series))
         lo = max([min(e for _, e in ember_pts), 10 * ref_noise] + [min(e for _, e in c) for c in curves.values()])
         hi = min([max(e for _, e in ember_pts)] + [max(e for _, e in c) for c in curves.values()])
         targets = []
@@ -513,7 +529,7 @@ def main():
         for target in targets:
             te = interp_time(ember_pts, target)
             cells = [f"{te:.3f}" if te else "-"]
-            for v in variants:
+            for v, _ in series:
                 tm = interp_time(curves[v], target)
                 cells += [f"{tm:.3f}", f"{te / tm:.2f}"] if te and tm else ["-", "-"]
             say(f"| {target:.3e} | " + " | ".join(cells) + " |")

@@ -26,6 +26,7 @@ SPLITS="${SPLITS:-16}"
 BUDGET="${BUDGET:-10}"
 MAX_SPP="${MAX_SPP:-65536}"
 EMBER_SAMPLERS="${EMBER_SAMPLERS:-independent,zsobol}"   # one ember ladder and table each
+MITSUBA_SAMPLERS="${MITSUBA_SAMPLERS:-independent}"      # e.g. independent,stratified,multijitter,orthogonal,ldsampler
 # Where results.csv, bench.csv, bench.svg and table.md go: this folder for the Cornell box,
 # bench/mitsuba/<scene stem>/ for another scene.
 if [ "$SCENE" = data/cornell-box/cornell_box.toml ]; then OUT="${OUT:-$HERE}"
@@ -37,4 +38,5 @@ case "$SCENE" in /*) SCENE_PATH="$SCENE" ;; *) SCENE_PATH="$ROOT/$SCENE" ;; esac
 exec "$VENV/bin/python" "$HERE/mitsuba_bench.py" --ember "$EMBER" \
     --scene "$SCENE_PATH" --width "$WIDTH" --height "$HEIGHT" --threads "$THREADS" \
     --ref-spp "$REF_SPP" --mitsuba-ref-spp "$MITSUBA_REF_SPP" --splits "$SPLITS" \
-    --budget "$BUDGET" --max-spp "$MAX_SPP" --ember-samplers "$EMBER_SAMPLERS" --out "$OUT"
+    --budget "$BUDGET" --max-spp "$MAX_SPP" --ember-samplers "$EMBER_SAMPLERS" \
+    --mitsuba-samplers "$MITSUBA_SAMPLERS" --out "$OUT"

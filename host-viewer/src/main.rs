@@ -91,6 +91,10 @@ struct Cli {
     /// Seed of the bake's and the path-traced view's sampler.
     #[arg(long, default_value_t = DEFAULT_SEED)]
     seed: u64,
+    /// Sample sequence of the path-traced view: independent, or zsobol (laid out for the
+    /// target spp; the image at the target equals `ember render --sampler zsobol --spp N`).
+    #[arg(long, value_parser = ember_cli::bench::parse_sampler, default_value = "independent")]
+    sampler: ember_kernel::sampler::SamplerKind,
     /// Bake and path-tracing threads (default: one per core). Does not change the results.
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -379,6 +383,7 @@ fn trace_options(
             height,
             path,
             seed: a.seed,
+            sampler: a.sampler,
             threads: a.threads,
             tile: TRACE_TILE,
             target_spp: a.spp.unwrap_or(default_spp),

@@ -85,6 +85,8 @@ pub struct TraceSetup {
     pub height: u32,
     pub path: PathSettings,
     pub seed: u64,
+    /// The sample sequence (ZSobol's is laid out for `target_spp`).
+    pub sampler: ember_kernel::sampler::SamplerKind,
     /// Rendering threads (rayon); 0 is one per core.
     pub threads: usize,
     pub tile: u32,
@@ -308,7 +310,7 @@ fn run(setup: &TraceSetup, shared: &Shared, notify: &dyn Fn()) {
         path: setup.path,
         spp: setup.target_spp,
         seed: setup.seed,
-        sampler: ember_kernel::sampler::SamplerKind::Independent,
+        sampler: setup.sampler,
         tile: setup.tile.max(1),
         threads: setup.threads,
         progress: false,

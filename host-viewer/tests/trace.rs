@@ -28,6 +28,7 @@ fn setup(scene: &Arc<LoadedScene>, target_spp: u32) -> TraceSetup {
         height: H,
         path,
         seed: 99,
+        sampler: ember_kernel::sampler::SamplerKind::Independent,
         threads: 2,
         tile: 16,
         target_spp,
@@ -40,7 +41,7 @@ fn reference(s: &TraceSetup, camera: &ViewCamera, integrator: Integrator, spp: u
         path: s.path,
         spp,
         seed: s.seed,
-        sampler: ember_kernel::sampler::SamplerKind::Independent,
+        sampler: s.sampler,
         tile: 16,
         threads: 2,
         progress: false,
@@ -164,6 +165,40 @@ fn frames_are_ember_render_bit_for_bit_across_restarts() {
     );
     // The same request again changes nothing.
     assert_eq!(worker.request(camera, Integrator::PathExplicit), g);
+    worker.stop();
+}
+
+/// With the ZSobol sampler the view's accumulation, whatever its passes, is `ember render
+/// --sampler zsobol --spp N` at the target N (the samples are laid out for N up front).
+#[test]
+fn zsobol_frames_are_ember_render_bit_for_bit() {
+    let scene = cornell();
+    let s = TraceSetup {
+        sampler: ember_kernel::sampler::SamplerKind::ZSobol,
+        ..setup(&scene, 21)
+    };
+    let camera = ViewCamera::from_desc(&scene.file.camera);
+    let (tx, rx) = mpsc::channel();
+    let worker = TraceWorker::start(
+        s.clone(),
+        camera,
+        Integrator::PathMis,
+        Box::new(move || {
+            let _ = tx.send(());
+        }),
+    );
+    worker.set_active(true);
+    let last = frame_at(&worker, &rx, FIRST_GENERATION, 21);
+    let zsobol = reference(&s, &camera, Integrator::PathMis, 21);
+    assert_eq!(bits(&last), zsobol, "ZSobol, MIS, 21 spp");
+    let independent = TraceSetup {
+        sampler: ember_kernel::sampler::SamplerKind::Independent,
+        ..s.clone()
+    };
+    assert_ne!(
+        zsobol,
+        reference(&independent, &camera, Integrator::PathMis, 21)
+    );
     worker.stop();
 }
 
