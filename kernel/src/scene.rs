@@ -1,7 +1,7 @@
 //! The scene as borrowed slices: what every integrator reads.
 
 use crate::bsdf::SurfaceBsdf;
-use crate::bvh::SceneBvh;
+use crate::bvh::{closest, SceneBvh};
 use crate::geometry::{inset_barycentrics, triangle_point, Ray, WatertightRay};
 use crate::math::Frame;
 use crate::texture::{Textures, NO_TEXTURE};
@@ -269,13 +269,17 @@ impl<'a> SceneView<'a> {
             .traverse::<false, _>(ray.o, ray.d, ray.t_max, |prim, t_max| {
                 let [p0, p1, p2] = self.triangle_vertices(prim);
                 let h = wray.intersect(t_max, p0, p1, p2)?;
+                // The closest-hit order (`bvh::closest`): independent of the visit order.
+                if !closest::precedes(h.t, prim, best.map(|b| (b.t, b.triangle))) {
+                    return None;
+                }
                 best = Some(Hit {
                     t: h.t,
                     triangle: prim,
                     b1: h.b1,
                     b2: h.b2,
                 });
-                Some(h.t)
+                Some(closest::bound_after(h.t))
             });
         best
     }

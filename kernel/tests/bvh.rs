@@ -3,6 +3,7 @@
 //! four-wide collapse's structure, and its traversal making exactly the binary traversal's
 //! calls on every query.
 
+use ember_kernel::bvh::closest::{bound_after, precedes};
 use ember_kernel::bvh::{
     build, collapse, max_nodes, max_wide_nodes, Bvh, BvhError, BvhNode, WideBvh, WideNode,
     MAX_LEAF_PRIMS, TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH, WIDTH,
@@ -506,11 +507,13 @@ fn icosphere(levels: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
 // Queries against brute force
 // ---------------------------------------------------------------------------------------------
 
+/// The first of all hits in the closest-hit order (`bvh::closest`: nearer first, the lower
+/// triangle index at equal distance).
 fn brute_closest(tris: &[Tri], o: Vec3, d: Vec3) -> Option<(u32, f32)> {
     let mut best: Option<(u32, f32)> = None;
     for (i, t) in tris.iter().enumerate() {
         if let Some(h) = intersect_triangle(o, d, f32::INFINITY, t[0], t[1], t[2]) {
-            if best.is_none_or(|(_, bt)| h.t < bt) {
+            if precedes(h.t, i as u32, best.map(|(p, t)| (t, p))) {
                 best = Some((i as u32, h.t));
             }
         }
@@ -518,18 +521,35 @@ fn brute_closest(tris: &[Tri], o: Vec3, d: Vec3) -> Option<(u32, f32)> {
     best
 }
 
+/// The closest hit as the renderer finds it (`SceneView::intersect`'s rule), with the binary
+/// tree and with the wide one: both must give the same.
 fn bvh_closest(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> Option<(u32, f32)> {
-    let mut best: Option<(u32, f32)> = None;
-    let hit = b.bvh().traverse::<false, _>(o, d, t_max, |prim, tmax| {
-        let t = &tris[prim as usize];
-        let h = intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)?;
-        if best.is_none_or(|(_, bt)| h < bt) {
+    let search = |wide: bool| {
+        let mut best: Option<(u32, f32)> = None;
+        let hit = |prim: u32, tmax: f32| {
+            let t = &tris[prim as usize];
+            let h = intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)?;
+            if !precedes(h, prim, best.map(|(p, t)| (t, p))) {
+                return None;
+            }
             best = Some((prim, h));
-        }
-        Some(h)
-    });
-    assert_eq!(hit, best.is_some());
-    best
+            Some(bound_after(h))
+        };
+        let any = if wide {
+            b.wide_bvh().traverse::<false, _>(o, d, t_max, hit)
+        } else {
+            b.bvh().traverse::<false, _>(o, d, t_max, hit)
+        };
+        assert_eq!(any, best.is_some());
+        best
+    };
+    let binary = search(false);
+    assert_eq!(
+        binary,
+        search(true),
+        "o={o} d={d}: binary and wide trees differ"
+    );
+    binary
 }
 
 fn bvh_occluded(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> bool {
@@ -567,22 +587,12 @@ fn check_queries(tris: &[Tri], b: &Built, rays: usize, seed: u64) {
             (None, None) => {}
             (Some((bp, bt)), Some((fp, ft))) => {
                 hits += 1;
-                let tol = 1e-6 * bt.abs();
-                assert!(
-                    (bt - ft).abs() <= tol,
-                    "ray {i} o={o} d={d}: t {ft} vs brute {bt}"
+                // The same hit exactly: ties are resolved by the order, not by the tree.
+                assert_eq!(
+                    (fp, ft.to_bits()),
+                    (bp, bt.to_bits()),
+                    "ray {i} o={o} d={d}: BVH prim {fp} at {ft} vs brute prim {bp} at {bt}"
                 );
-                if bp != fp {
-                    // A tie: the BVH's triangle must be hit at the same distance.
-                    let t = &tris[fp as usize];
-                    let h = intersect_triangle(o, d, f32::INFINITY, t[0], t[1], t[2])
-                        .expect("BVH triangle not hit");
-                    assert!(
-                        (h.t - bt).abs() <= tol,
-                        "ray {i}: BVH prim {fp} at {} vs brute prim {bp} at {bt}",
-                        h.t
-                    );
-                }
             }
             _ => panic!("ray {i} o={o} d={d}: brute {brute:?} vs BVH {fast:?}"),
         }
@@ -649,9 +659,30 @@ fn random_soups_build_valid_trees_and_match_brute_force() {
 fn degenerate_and_coincident_triangles() {
     let tris = degenerate_soup();
     check_soup(&tris, 10_000, 31);
-    // Only copies of one triangle: every centroid coincides.
+    // Only copies of one triangle: every centroid coincides, and every hit is a 300-way tie
+    // that the order resolves to the first copy, whatever the trees' leaf order.
     let base = degenerate_soup()[0];
-    check_soup(&vec![base; 300], 2_000, 32);
+    let copies = vec![base; 300];
+    check_soup(&copies, 2_000, 32);
+    let b = Built::new(&copies);
+    assert_ne!(
+        b.bvh().prim_order[0],
+        0,
+        "the tree should not list copy 0 first"
+    );
+    let mut rng = Rng::new(34);
+    let mut ties = 0;
+    for _ in 0..500 {
+        let target = rng.on_triangle(&base);
+        let o = target + rng.dir() * 2.0;
+        if let Some((prim, _)) =
+            bvh_closest(&b, &copies, o, (target - o).normalize(), f32::INFINITY)
+        {
+            assert_eq!(prim, 0);
+            ties += 1;
+        }
+    }
+    assert!(ties > 400, "{ties} rays hit the copies");
     // Only zero-area triangles: nothing can be hit.
     let flat: Vec<Tri> = degenerate_soup()[200..300].to_vec();
     let b = Built::new(&flat);

@@ -8,6 +8,7 @@
 //! triangle tests in the same order with fewer, vectorised box tests.
 
 mod build;
+pub mod closest;
 mod traverse;
 mod wide;
 
