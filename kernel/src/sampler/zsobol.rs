@@ -250,7 +250,8 @@ impl ZSobolSampler {
     }
 
     /// A hash of (seed, dimension): the scrambling seeds of dimensions `dimension` and
-    /// `dimension + 1` are its halves, the permutations' key is its product by an odd constant.
+    /// `dimension + 1` are its halves, and it is the digit permutations' key (mixed with each
+    /// digit's higher digits by [`permutation_hash`]).
     #[inline]
     fn dimension_hash(&self) -> u64 {
         mix64(self.layout.seed ^ u64::from(self.dimension).wrapping_mul(0x9E37_79B9_7F4A_7C15))
