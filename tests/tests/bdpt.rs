@@ -47,7 +47,7 @@ mod common;
 use common::replicates::*;
 use common::scenes::{
     back_wall, cdf_deviation, cube, mapped, room, room_materials, room_settings, transforms, Cam,
-    Mesh, TempDir, DOWN, FLOOR, LIGHT, ROOM_CAM, UP,
+    TempDir, TinyEmitter, DOWN, FLOOR, LIGHT, ROOM_CAM, UP,
 };
 use common::*;
 use ember_cli::image::{read_exr, Image};
@@ -1599,60 +1599,13 @@ fn light_tracing_and_bdpt_survive_extreme_materials() {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
 fn light_tracing_and_bdpt_match_the_tiny_hot_emitter_closed_form() {
-    use ember_kernel::glam::Vec3;
-    let s = 5e-4f32;
-    let light = [
-        Vec3::new(-s, 1.0, -s),
-        Vec3::new(s, 1.0, -s),
-        Vec3::new(s, 1.0, s),
-        Vec3::new(-s, 1.0, s),
-    ];
-    let big = [
-        Vec3::new(-2.0, 0.0, 2.0),
-        Vec3::new(2.0, 0.0, 2.0),
-        Vec3::new(2.0, 0.0, -2.0),
-        Vec3::new(-2.0, 0.0, -2.0),
-    ];
-    let le = 1e6f32;
-    let m = Mesh::default()
-        .material("plane", Vec3::splat(0.5), Vec3::ZERO, 1.0, Vec3::ZERO, 7)
-        .material("hot", Vec3::ZERO, Vec3::ZERO, 1.0, Vec3::splat(le), 7)
-        .quad("plane", "plane", big, UP)
-        .quad("hot", "hot", light, DOWN);
-    let down = Cam {
-        eye: Vec3::new(0.0, 0.5, 0.0),
-        at: Vec3::ZERO,
-        up: Vec3::NEG_Z,
-        fov: 60.0,
-        width: 64,
-        height: 48,
-    };
-    let dir = TempDir::new("bdpt-tiny-emitter");
-    let scene = m.load(&dir, &down);
-    let camera = scene.camera(down.width, down.height);
-    let side = f64::from(light[1].x) - f64::from(light[0].x);
-    let area = side * (f64::from(light[2].z) - f64::from(light[0].z));
-    let radiance = |p: DVec3| {
-        let d2 = p.x * p.x + p.z * p.z + 1.0;
-        0.5 / std::f64::consts::PI * f64::from(le) * area / (d2 * d2)
-    };
-    let mut exact = vec![DVec3::ZERO; (down.width * down.height) as usize];
-    for y in 0..down.height {
-        for x in 0..down.width {
-            let mut sum = 0.0;
-            for k in 0..64 {
-                let u = Vec2::new(((k % 8) as f32 + 0.5) / 8.0, ((k / 8) as f32 + 0.5) / 8.0);
-                let ray = camera.generate_ray(x, y, u);
-                let (o, d) = (ray.o.as_dvec3(), ray.d.as_dvec3());
-                sum += radiance(o + d * (-o.y / d.y));
-            }
-            exact[(y * down.width + x) as usize] = DVec3::splat(sum / 64.0);
-        }
-    }
+    let tiny = TinyEmitter::new("bdpt-tiny-emitter");
+    let (scene, camera) = (&tiny.scene, &tiny.camera);
+    let (width, height) = (camera.width, camera.height);
     let exact = Replicates {
-        width: down.width,
-        height: down.height,
-        images: vec![exact],
+        width,
+        height,
+        images: vec![tiny.exact.clone()],
     };
     let direct = PathSettings {
         max_depth: 1,
@@ -1677,7 +1630,7 @@ fn light_tracing_and_bdpt_match_the_tiny_hot_emitter_closed_form() {
         let label = format!("tiny emitter {integrator:?}");
         let reps = Replicates::render(
             &scene.data.view(),
-            &camera,
+            camera,
             integrator,
             direct,
             1,
@@ -1699,21 +1652,13 @@ fn light_tracing_and_bdpt_match_the_tiny_hot_emitter_closed_form() {
         );
     }
     // Seen directly: the light covers 1/16 of a film four times its side.
-    let camera = Camera::look_at(
-        Vec3::new(0.0, 0.5, 0.0),
-        Vec3::new(0.0, 1.0, 0.0),
-        Vec3::NEG_Z,
-        2.0 * (4.0 * s / 0.5).atan().to_degrees(),
-        32,
-        32,
-    );
-    let width = 2.0 * 0.5 * f64::from(camera.tan_half_fov);
-    let want = f64::from(le) * (side / width).powi(2);
+    let camera = &tiny.up_camera;
+    let want = tiny.seen_directly;
     for integrator in integrators {
         let label = format!("tiny emitter seen directly {integrator:?}");
         let reps = Replicates::render(
             &scene.data.view(),
-            &camera,
+            camera,
             integrator,
             direct,
             1,

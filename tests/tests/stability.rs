@@ -42,7 +42,7 @@ use ember_cli::mesh::{bsdf_for, SceneData};
 use ember_cli::render::{render, RenderSettings, Rendered, Shard};
 use ember_cli::LoadedScene;
 use ember_kernel::camera::Camera;
-use ember_kernel::glam::{DVec3, Vec2, Vec3};
+use ember_kernel::glam::{DVec3, Vec3};
 use ember_kernel::integrator::{Integrator, PathSettings};
 use ember_kernel::sampler::mix64;
 use ember_kernel::scene::Material;
@@ -720,55 +720,11 @@ fn extreme_materials_render_finite_bounded_values() {
 /// Then the same light seen directly fills a known fraction of the film.
 #[test]
 fn tiny_hot_emitter_matches_the_closed_form() {
-    let s = 5e-4f32;
-    let light = [
-        Vec3::new(-s, 1.0, -s),
-        Vec3::new(s, 1.0, -s),
-        Vec3::new(s, 1.0, s),
-        Vec3::new(-s, 1.0, s),
-    ];
-    let big = [
-        Vec3::new(-2.0, 0.0, 2.0),
-        Vec3::new(2.0, 0.0, 2.0),
-        Vec3::new(2.0, 0.0, -2.0),
-        Vec3::new(-2.0, 0.0, -2.0),
-    ];
-    let le = 1e6f32;
-    let m = Mesh::default()
-        .material("plane", Vec3::splat(0.5), Vec3::ZERO, 1.0, Vec3::ZERO, 7)
-        .material("hot", Vec3::ZERO, Vec3::ZERO, 1.0, Vec3::splat(le), 7)
-        .quad("plane", "plane", big, UP)
-        .quad("hot", "hot", light, DOWN);
-    let down = Cam {
-        eye: Vec3::new(0.0, 0.5, 0.0),
-        at: Vec3::ZERO,
-        up: Vec3::NEG_Z,
-        fov: 60.0,
-        width: 64,
-        height: 48,
-    };
-    let dir = TempDir::new("stability-tiny-emitter");
-    let scene = m.load(&dir, &down);
-    let camera = scene.camera(down.width, down.height);
-    // Area from the stored f32 corners.
-    let side = f64::from(light[1].x) - f64::from(light[0].x);
-    let area = side * (f64::from(light[2].z) - f64::from(light[0].z));
-    let radiance = |p: DVec3| {
-        let d2 = p.x * p.x + p.z * p.z + 1.0;
-        0.5 / std::f64::consts::PI * f64::from(le) * area / (d2 * d2)
-    };
-    let mut exact = ember_cli::image::Image::new(down.width, down.height);
-    for y in 0..down.height {
-        for x in 0..down.width {
-            let mut sum = 0.0;
-            for k in 0..64 {
-                let u = Vec2::new(((k % 8) as f32 + 0.5) / 8.0, ((k / 8) as f32 + 0.5) / 8.0);
-                let ray = camera.generate_ray(x, y, u);
-                let (o, d) = (ray.o.as_dvec3(), ray.d.as_dvec3());
-                sum += radiance(o + d * (-o.y / d.y));
-            }
-            exact.pixels[(y * down.width + x) as usize] = Vec3::splat((sum / 64.0) as f32);
-        }
+    let tiny = TinyEmitter::new("stability-tiny-emitter");
+    let (scene, camera) = (&tiny.scene, &tiny.camera);
+    let mut exact = ember_cli::image::Image::new(camera.width, camera.height);
+    for (e, t) in exact.pixels.iter_mut().zip(&tiny.exact) {
+        *e = t.as_vec3();
     }
     let direct = PathSettings {
         max_depth: 1,
@@ -779,7 +735,7 @@ fn tiny_hot_emitter_matches_the_closed_form() {
     // Mean and blocks for two integrators, and the means of three direct views.
     let z_crit = critical_z(0.01, 2 * TESTS_PER_COMPARE + 3);
     for integrator in [Integrator::PathExplicit, Integrator::PathMis] {
-        let r = render_data(&scene.data, &camera, integrator, direct, 16, 21);
+        let r = render_data(&scene.data, camera, integrator, direct, 16, 21);
         assert_clean(&r, &format!("{integrator:?}"));
         let check = |label: &str, got: &[Rgb], var: &[Rgb], want: &[Rgb]| {
             for i in 0..got.len() {
@@ -813,32 +769,15 @@ fn tiny_hot_emitter_matches_the_closed_form() {
         );
     }
     // An implicit walk almost never finds the light; its rare hits carry 1e6: still finite.
-    let r = render_data(
-        &scene.data,
-        &camera,
-        Integrator::PathImplicit,
-        direct,
-        4,
-        22,
-    );
+    let r = render_data(&scene.data, camera, Integrator::PathImplicit, direct, 4, 22);
     assert_clean(&r, "implicit");
 
-    // Seen directly: a square film 8·s wide at the light's distance 0.5, four times the
-    // light's side, so the light covers (2s / film width)² = 1/16 of it; the mean is Le times
-    // that fraction.
-    let up = Cam {
-        eye: Vec3::new(0.0, 0.5, 0.0),
-        at: Vec3::new(0.0, 1.0, 0.0),
-        up: Vec3::NEG_Z,
-        fov: 2.0 * (4.0 * s / 0.5).atan().to_degrees(),
-        width: 32,
-        height: 32,
-    };
-    let camera = Camera::look_at(up.eye, up.at, up.up, up.fov, up.width, up.height);
-    let width = 2.0 * 0.5 * f64::from(camera.tan_half_fov);
-    let want = f64::from(le) * (side / width).powi(2);
+    // Seen directly: the light covers 1/16 of a film four times its side; the mean is Le
+    // times that fraction.
+    let camera = &tiny.up_camera;
+    let want = tiny.seen_directly;
     for integrator in ALL_INTEGRATORS {
-        let r = render_data(&scene.data, &camera, integrator, direct, 16, 23);
+        let r = render_data(&scene.data, camera, integrator, direct, 16, 23);
         assert_clean(&r, &format!("{integrator:?} direct view"));
         let (got, sd) = (
             f64::from(r.image.mean().x),

@@ -360,3 +360,98 @@ pub fn cube(m: Mesh, name: &str, material: &str, c: Vec3, h: f32, outward: bool)
     }
     m
 }
+
+/// A square emitter of side 2s = 1e-3 and radiance Le = 1e6 facing down at height 1 over a
+/// Lambertian plane (Kd 0.5) at height 0, seen by a pinhole between them looking down (it
+/// blocks nothing), with the direct-lighting closed form of each pixel: L(r) = Kd/π · Le·A ·
+/// h²/(h² + r²)² (h = 1; the square's finite size changes it by (s/d)² ≤ 1e-6), averaged over
+/// 8×8 sub-pixel rays. A second camera looks up at the light from 0.5 below it with a film
+/// four times its side, so the light covers 1/16 of it: the mean is Le/16 ([`Self::seen_directly`]).
+pub struct TinyEmitter {
+    pub scene: LoadedScene,
+    /// The camera looking down at the plane.
+    pub camera: Camera,
+    /// The closed form of each pixel of `camera`, row-major.
+    pub exact: Vec<DVec3>,
+    /// The camera looking up at the light.
+    pub up_camera: Camera,
+    /// The closed-form mean of `up_camera`'s image.
+    pub seen_directly: f64,
+    _dir: TempDir,
+}
+
+impl TinyEmitter {
+    pub fn new(label: &str) -> Self {
+        let s = 5e-4f32;
+        let light = [
+            Vec3::new(-s, 1.0, -s),
+            Vec3::new(s, 1.0, -s),
+            Vec3::new(s, 1.0, s),
+            Vec3::new(-s, 1.0, s),
+        ];
+        let big = [
+            Vec3::new(-2.0, 0.0, 2.0),
+            Vec3::new(2.0, 0.0, 2.0),
+            Vec3::new(2.0, 0.0, -2.0),
+            Vec3::new(-2.0, 0.0, -2.0),
+        ];
+        let le = 1e6f32;
+        let m = Mesh::default()
+            .material("plane", Vec3::splat(0.5), Vec3::ZERO, 1.0, Vec3::ZERO, 7)
+            .material("hot", Vec3::ZERO, Vec3::ZERO, 1.0, Vec3::splat(le), 7)
+            .quad("plane", "plane", big, UP)
+            .quad("hot", "hot", light, DOWN);
+        let down = Cam {
+            eye: Vec3::new(0.0, 0.5, 0.0),
+            at: Vec3::ZERO,
+            up: Vec3::NEG_Z,
+            fov: 60.0,
+            width: 64,
+            height: 48,
+        };
+        let dir = TempDir::new(label);
+        let scene = m.load(&dir, &down);
+        let camera = scene.camera(down.width, down.height);
+        // Area from the stored f32 corners.
+        let side = f64::from(light[1].x) - f64::from(light[0].x);
+        let area = side * (f64::from(light[2].z) - f64::from(light[0].z));
+        let radiance = |p: DVec3| {
+            let d2 = p.x * p.x + p.z * p.z + 1.0;
+            0.5 / std::f64::consts::PI * f64::from(le) * area / (d2 * d2)
+        };
+        let mut exact = vec![DVec3::ZERO; (down.width * down.height) as usize];
+        for y in 0..down.height {
+            for x in 0..down.width {
+                let mut sum = 0.0;
+                for k in 0..64 {
+                    let u = ember_kernel::glam::Vec2::new(
+                        ((k % 8) as f32 + 0.5) / 8.0,
+                        ((k / 8) as f32 + 0.5) / 8.0,
+                    );
+                    let ray = camera.generate_ray(x, y, u);
+                    let (o, d) = (ray.o.as_dvec3(), ray.d.as_dvec3());
+                    sum += radiance(o + d * (-o.y / d.y));
+                }
+                exact[(y * down.width + x) as usize] = DVec3::splat(sum / 64.0);
+            }
+        }
+        // A square film 8·s wide at the light's distance 0.5, four times the light's side.
+        let up_camera = Camera::look_at(
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::NEG_Z,
+            2.0 * (4.0 * s / 0.5).atan().to_degrees(),
+            32,
+            32,
+        );
+        let width = 2.0 * 0.5 * f64::from(up_camera.tan_half_fov);
+        Self {
+            scene,
+            camera,
+            exact,
+            up_camera,
+            seen_directly: f64::from(le) * (side / width).powi(2),
+            _dir: dir,
+        }
+    }
+}
