@@ -67,8 +67,8 @@ pub struct Xvfb {
 }
 
 impl Xvfb {
-    /// Starts `Xvfb -displayfd 1` (1024x768, 24 bits) and waits for the display number it
-    /// chose.
+    /// Starts `Xvfb -displayfd 1 -noreset` (1024x768, 24 bits) and waits for the display
+    /// number it chose.
     pub fn start() -> Self {
         let mut child = Command::new("Xvfb")
             .args([
@@ -79,6 +79,10 @@ impl Xvfb {
                 "1024x768x24",
                 "-nolisten",
                 "tcp",
+                // Without it the server resets when its last client disconnects (the
+                // readiness probe below), and a client connecting during the reset is
+                // refused: the "Failed to open connection to X server" CI saw once.
+                "-noreset",
             ])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
