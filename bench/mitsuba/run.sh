@@ -5,6 +5,7 @@
 # scene, film, threads and reference, in one run on one machine. See mitsuba_bench.py.
 #
 #   bench/mitsuba/run.sh                       # 256x256, 2 threads, 4096-spp references
+#   SCENE=tinyrender-cbox bench/mitsuba/run.sh # TinyRender's cbox.obj, sphere made diffuse
 #   REF_SPP=128 MITSUBA_REF_SPP=128 SPLITS=8 BUDGET=0.5 MAX_SPP=16 OUT=/tmp/smoke \
 #       bench/mitsuba/run.sh                   # a quick smoke run (a few minutes)
 #
@@ -33,6 +34,25 @@ if [ "$SCENE" = data/cornell-box/cornell_box.toml ]; then OUT="${OUT:-$HERE}"
 else OUT="${OUT:-$HERE/$(basename "$SCENE" .toml)}"; fi
 
 source "$HERE/env.sh"   # venv with Mitsuba and numpy, LLVM 19, ember (release)
+
+# SCENE=tinyrender-cbox: TinyRender's own Cornell box (a5/cbox: cbox.obj, 32k triangles,
+# cbox_path_explicit_rr.toml's camera and path settings) with its sphere made diffuse
+# (`rightSphere` is TinyRender's Phong/diffuse mixture, illum 8, which Mitsuba lacks; its Kd is
+# kept), copied to $OUT/scene so that both renderers read the same files. Film 320x240 (the
+# scene's 4:3) unless WIDTH/HEIGHT say otherwise.
+if [ "$SCENE" = tinyrender-cbox ]; then
+    TINYRENDER="${EMBER_TINYRENDER:-$ROOT/../shared/tinyrender}"
+    src="$TINYRENDER/data/a5/cbox"
+    mkdir -p "$OUT/scene/mesh"
+    cp "$src/mesh/cbox.obj" "$OUT/scene/mesh/"
+    awk '$1 == "newmtl" { m = $2 } m == "rightSphere" && $1 == "illum" { print "illum 7"; next } { print }' \
+        "$src/mesh/cbox.mtl" >"$OUT/scene/mesh/cbox.mtl"
+    sed 's|^objfile = .*|objfile = "mesh/cbox.obj"|' "$src/tinyrender/cbox_path_explicit_rr.toml" \
+        >"$OUT/scene/cbox_diffuse.toml"
+    grep -q 'objfile = "mesh/cbox.obj"' "$OUT/scene/cbox_diffuse.toml"
+    SCENE="$OUT/scene/cbox_diffuse.toml"
+    [ "$SIZE" = 256 ] && [ "$WIDTH" = 256 ] && WIDTH=320 && HEIGHT=240
+fi
 
 case "$SCENE" in /*) SCENE_PATH="$SCENE" ;; *) SCENE_PATH="$ROOT/$SCENE" ;; esac
 exec "$VENV/bin/python" "$HERE/mitsuba_bench.py" --ember "$EMBER" \
