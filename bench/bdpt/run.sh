@@ -21,7 +21,7 @@ run() {
     local out="$HERE/$name"
     mkdir -p "$out"
     echo "== $name: reference, BDPT $REF_SPP spp at ${W}x$H"
-    "$EMBER" render "$scene" --integrator bdpt --spp "$REF_SPP" --seed 1 --width "$W" \
+    "$EMBER" render "$scene" --integrator bdpt --sampler independent --spp "$REF_SPP" --seed 1 --width "$W" \
         --height "$H" -o "$out/ref.exr" | tail -n 2
     "$EMBER" bench "$scene" --reference "$out/ref.exr" --integrators mis,explicit,lighttracer,bdpt \
         --budget "$BUDGET" --seed 77 -o "$out" -q

@@ -407,7 +407,8 @@ def main():
     for i in range(k):
         p = os.path.join(build, f"ember_ref_{i}.exr")
         subprocess.run(
-            [args.ember, "render", args.scene, "--integrator", "mis", "--spp", str(args.ref_spp // k),
+            [args.ember, "render", args.scene, "--integrator", "mis", "--sampler", "independent",
+             "--spp", str(args.ref_spp // k),
              "--seed", str(1000 + i), "--width", str(width), "--height", str(height),
              "--threads", str(args.threads), "-q", "-o", p],
             check=True, stderr=subprocess.DEVNULL)

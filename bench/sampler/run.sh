@@ -15,7 +15,7 @@ echo "CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //'),
 echo "SIMD: $(grep -m1 '^flags' /proc/cpuinfo | tr ' ' '\n' | grep -xE 'sse4_2|avx|avx2|fma|avx512f|avx512dq|avx512bw|avx512vl|neon' | tr '\n' ' ')"
 scene="$ROOT/data/cornell-box/cornell_box.toml"
 ref="$(mktemp -d)/ref.exr"
-"$EMBER" render "$scene" --integrator mis --spp 8192 --seed 1 --width 96 --height 96 -o "$ref" | tail -n 2
+"$EMBER" render "$scene" --integrator mis --sampler independent --spp 8192 --seed 1 --width 96 --height 96 -o "$ref" | tail -n 2
 for sampler in independent zsobol; do
     "$EMBER" bench "$scene" --reference "$ref" --integrators mis,explicit,implicit,lighttracer,bdpt \
         --budget "$BUDGET" --max-spp 512 --seed 78 --sampler "$sampler" -o "$HERE/$sampler" -q

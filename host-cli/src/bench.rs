@@ -122,7 +122,9 @@ pub struct BenchSettings {
     pub tile: u32,
     /// Base seed; rung `k` renders with [`rung_seed`]`(seed, k)`.
     pub seed: u64,
-    pub sampler: SamplerKind,
+    /// The sampler of every integrator; `None`: each integrator's
+    /// [`Integrator::default_sampler`].
+    pub sampler: Option<SamplerKind>,
 }
 
 /// One measured rung.
@@ -183,7 +185,9 @@ pub fn run_bench(
         path: s.path,
         spp,
         seed,
-        sampler: s.sampler,
+        sampler: s
+            .sampler
+            .unwrap_or_else(|| Integrator::default_sampler(integrator)),
         tile: s.tile.max(1),
         threads: s.threads,
         progress: false,
@@ -448,9 +452,10 @@ pub struct BenchArgs {
     /// Base seed; rung k renders with a hash of it and k.
     #[arg(long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
-    /// Sample sequence: independent, or zsobol (Owen-scrambled Sobol' in Morton order).
-    #[arg(long, value_parser = parse_sampler, default_value = "independent")]
-    pub sampler: SamplerKind,
+    /// Sample sequence of every integrator: independent, or zsobol (Owen-scrambled Sobol' in
+    /// Morton order). Default: each integrator's own, as `ember render`.
+    #[arg(long, value_parser = parse_sampler)]
+    pub sampler: Option<SamplerKind>,
     /// Tile side in pixels.
     #[arg(long, default_value_t = 16)]
     pub tile: u32,

@@ -136,11 +136,12 @@ struct RenderArgs {
     /// Seed of the sampler; the same seed gives the same image bit for bit.
     #[arg(long, default_value_t = DEFAULT_SEED)]
     seed: u64,
-    /// Sample sequence: independent (default), or zsobol: Owen-scrambled Sobol' points with
-    /// pixels in Morton order, laid out for the render's spp (stratified within pixels,
-    /// blue-noise error across them).
-    #[arg(long, value_parser = ember_cli::bench::parse_sampler, default_value = "independent")]
-    sampler: ember_kernel::sampler::SamplerKind,
+    /// Sample sequence: zsobol, Owen-scrambled Sobol' points with pixels in Morton order, laid
+    /// out for the render's spp (stratified within pixels, blue-noise error across them), or
+    /// independent. Default: zsobol, except independent for the light tracer (whose error
+    /// ZSobol does not lower).
+    #[arg(long, value_parser = ember_cli::bench::parse_sampler)]
+    sampler: Option<ember_kernel::sampler::SamplerKind>,
     /// Worker threads (default: one per core). Does not change the image.
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -337,7 +338,7 @@ fn run_render(a: &RenderArgs) -> Result<()> {
         path,
         spp,
         seed: a.seed,
-        sampler: a.sampler,
+        sampler: a.sampler.unwrap_or(integrator.default_sampler()),
         tile: a.tile.unwrap_or(DEFAULT_TILE).max(1),
         threads: a.threads,
         progress: !a.quiet,
@@ -453,6 +454,11 @@ fn render_with_viewer(a: &RenderArgs) -> Result<()> {
             "the frame is drawn whole; the bake is not split",
         ),
         (a.tile.is_some(), "--tile", "the frame has no tiles"),
+        (
+            a.sampler.is_some(),
+            "--sampler",
+            "the bake draws independent samples",
+        ),
         (
             a.max_memory_gib.is_some(),
             "--max-memory-gib",

@@ -91,8 +91,11 @@ struct Cli {
     /// Seed of the bake's and the path-traced view's sampler.
     #[arg(long, default_value_t = DEFAULT_SEED)]
     seed: u64,
-    /// Sample sequence of the path-traced view: independent, or zsobol (laid out for the
-    /// target spp; the image at the target equals `ember render --sampler zsobol --spp N`).
+    /// Sample sequence of the path-traced view: independent (the default here, unlike `ember
+    /// render`: the view is progressive, and with independent samples its image at any N spp
+    /// equals `ember render --sampler independent --spp N`), or zsobol, laid out for the target
+    /// spp up front (the image at the target N equals `ember render --sampler zsobol --spp N`;
+    /// before it, the first samples of that layout).
     #[arg(long, value_parser = ember_cli::bench::parse_sampler, default_value = "independent")]
     sampler: ember_kernel::sampler::SamplerKind,
     /// Bake and path-tracing threads (default: one per core). Does not change the results.

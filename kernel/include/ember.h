@@ -29,8 +29,9 @@
 // start-up: they differ when the program was compiled against another ember.h than the
 // library it runs with. Version 2 added `struct_size` as the first field of every struct the
 // caller fills, conductor and dielectric materials, and textures; version 3 the light tracer,
-// BDPT and their splat buffers (`ember_render_tile_splats`; no struct changed).
-#define EMBER_ABI_VERSION 3
+// BDPT and their splat buffers (`ember_render_tile_splats`; no struct changed); version 4
+// [`EmberSettings::sampler`] (the Owen-scrambled Sobol' sampler, the default).
+#define EMBER_ABI_VERSION 4
 
 // Success.
 #define EMBER_OK 0
@@ -123,6 +124,20 @@
 
 // The deepest bounded `max_depth` BDPT renders (its subpaths live in a fixed-size scratch).
 #define EMBER_BDPT_MAX_DEPTH 64
+
+// [`EmberSettings::sampler`]: the integrator's default, as the command line's: Owen-scrambled
+// Sobol' points for the path tracers and BDPT, independent numbers for the light tracer
+// (0, so that zeroed settings get it).
+#define EMBER_SAMPLER_DEFAULT 0
+
+// [`EmberSettings::sampler`]: independent uniform numbers hashed from (seed, pixel, sample,
+// dimension).
+#define EMBER_SAMPLER_INDEPENDENT 1
+
+// [`EmberSettings::sampler`]: Owen-scrambled Sobol' points with pixels in Morton order
+// (pbrt-v4's ZSobolSampler), laid out for `spp` samples of the camera's film: a render of
+// `spp` samples is not the first `spp` samples of a longer one.
+#define EMBER_SAMPLER_ZSOBOL 2
 
 // [`EmberSettings::bake_estimator`]: MIS path tracing from each point (the default).
 #define EMBER_BAKE_MIS 0
@@ -264,6 +279,8 @@ typedef struct EmberSettings {
   uint32_t bake_estimator;
   // The seed: equal seeds give equal images.
   uint64_t seed;
+  // `EMBER_SAMPLER_*` (rendering only; the bake uses independent numbers). Since version 4.
+  uint32_t sampler;
 } EmberSettings;
 
 // A surface point to bake.

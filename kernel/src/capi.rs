@@ -88,7 +88,7 @@
 //!
 //! # ABI version
 //!
-//! This is version 3 ([`EMBER_ABI_VERSION`]) of the C API. Callers check at start-up that the
+//! This is version 4 ([`EMBER_ABI_VERSION`]) of the C API. Callers check at start-up that the
 //! library they linked implements the header they compiled with,
 //!
 //! ```c
@@ -111,6 +111,12 @@
 //! splatting integrators) and the records of version 2 and 3 are the same, with the same
 //! sizes. The version still changed because a version 3 header declares functions a version 2
 //! library lacks; a version 2 program needs only to be recompiled.
+//!
+//! Version 4 appended [`EmberSettings::sampler`], so `sizeof(EmberSettings)` grew from 40 to 48
+//! bytes: version 3 settings are refused by their size. Zeroed, the field chooses each
+//! integrator's default sampler, as the command line does (Owen-scrambled Sobol' points for
+//! the path tracers and BDPT), so a version 3 program that zeroes its settings renders, once
+//! recompiled, `ember render`'s images rather than version 3's.
 //!
 //! Which structs carry the field (since version 2), and why:
 //! - [`EmberMaterial`] changed (new kinds, texture ids, IOR, tint, roughness). A version 1
@@ -165,6 +171,7 @@ use crate::integrator::{
     MisHeuristic, PathSettings, PixelStats,
 };
 use crate::material::{PhongParams, Reflectance, Surface};
+use crate::sampler::{SamplerKind, Sampling};
 use crate::scene::{Material, SceneError, SceneView};
 use crate::splat::{self, NoSplats, SplatBuffer};
 use crate::texture::{Texture, Textures, NO_TEXTURE};
@@ -176,8 +183,9 @@ use glam::{Vec2, Vec3};
 /// start-up: they differ when the program was compiled against another ember.h than the
 /// library it runs with. Version 2 added `struct_size` as the first field of every struct the
 /// caller fills, conductor and dielectric materials, and textures; version 3 the light tracer,
-/// BDPT and their splat buffers (`ember_render_tile_splats`; no struct changed).
-pub const EMBER_ABI_VERSION: u32 = 3;
+/// BDPT and their splat buffers (`ember_render_tile_splats`; no struct changed); version 4
+/// [`EmberSettings::sampler`] (the Owen-scrambled Sobol' sampler, the default).
+pub const EMBER_ABI_VERSION: u32 = 4;
 
 /// Success.
 pub const EMBER_OK: i32 = 0;
@@ -256,6 +264,18 @@ pub const EMBER_INTEGRATOR_BDPT_BALANCE: u32 = 5;
 /// The deepest bounded `max_depth` BDPT renders (its subpaths live in a fixed-size scratch).
 pub const EMBER_BDPT_MAX_DEPTH: i32 = 64;
 const _: () = assert!(EMBER_BDPT_MAX_DEPTH as u32 == bdpt::BDPT_MAX_DEPTH);
+
+/// [`EmberSettings::sampler`]: the integrator's default, as the command line's: Owen-scrambled
+/// Sobol' points for the path tracers and BDPT, independent numbers for the light tracer
+/// (0, so that zeroed settings get it).
+pub const EMBER_SAMPLER_DEFAULT: u32 = 0;
+/// [`EmberSettings::sampler`]: independent uniform numbers hashed from (seed, pixel, sample,
+/// dimension).
+pub const EMBER_SAMPLER_INDEPENDENT: u32 = 1;
+/// [`EmberSettings::sampler`]: Owen-scrambled Sobol' points with pixels in Morton order
+/// (pbrt-v4's ZSobolSampler), laid out for `spp` samples of the camera's film: a render of
+/// `spp` samples is not the first `spp` samples of a longer one.
+pub const EMBER_SAMPLER_ZSOBOL: u32 = 2;
 
 /// [`EmberSettings::bake_estimator`]: MIS path tracing from each point (the default).
 pub const EMBER_BAKE_MIS: u32 = 0;
@@ -390,6 +410,8 @@ pub struct EmberSettings {
     pub bake_estimator: u32,
     /// The seed: equal seeds give equal images.
     pub seed: u64,
+    /// `EMBER_SAMPLER_*` (rendering only; the bake uses independent numbers). Since version 4.
+    pub sampler: u32,
 }
 
 /// A surface point to bake.
@@ -1122,7 +1144,7 @@ struct TileJob<'a> {
     path: PathSettings,
     integrator: Integrator,
     spp: u32,
-    seed: u64,
+    sampling: Sampling,
     x0: u32,
     y0: u32,
     w: u32,
@@ -1160,7 +1182,7 @@ impl TileJob<'_> {
                 &self.view,
                 &self.camera,
                 &self.path,
-                &crate::sampler::Sampling::independent(self.seed),
+                &self.sampling,
                 x,
                 y,
                 0,
@@ -1195,6 +1217,12 @@ unsafe fn tile_job<'a>(
     };
     let path = path_settings(settings)?;
     let integrator = integrator_of(settings.integrator)?;
+    let sampler = match settings.sampler {
+        EMBER_SAMPLER_DEFAULT => integrator.default_sampler(),
+        EMBER_SAMPLER_INDEPENDENT => SamplerKind::Independent,
+        EMBER_SAMPLER_ZSOBOL => SamplerKind::ZSobol,
+        _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
+    };
     if matches!(integrator, Integrator::Bdpt(_)) && bdpt::check_depth(path.max_depth).is_err() {
         return Err(EMBER_ERROR_INVALID_ARGUMENT);
     }
@@ -1225,7 +1253,13 @@ unsafe fn tile_job<'a>(
         path,
         integrator,
         spp: settings.spp,
-        seed: settings.seed,
+        sampling: Sampling::new(
+            sampler,
+            settings.seed,
+            settings.spp,
+            camera.width,
+            camera.height,
+        ),
         x0,
         y0,
         w,
@@ -1989,6 +2023,7 @@ mod tests {
             spp: 2,
             bake_estimator: EMBER_BAKE_MIS,
             seed: 7,
+            sampler: EMBER_SAMPLER_DEFAULT,
         };
         let mut out = [-1.0f32; 3 * 16];
         let r =
@@ -2015,6 +2050,10 @@ mod tests {
             },
             EmberSettings {
                 integrator: 3,
+                ..settings
+            },
+            EmberSettings {
+                sampler: EMBER_SAMPLER_ZSOBOL + 1,
                 ..settings
             },
         ] {
@@ -2168,6 +2207,19 @@ mod tests {
         seed: u64,
     }
 
+    /// Versions 2 and 3 of [`EmberSettings`]: no sampler.
+    #[repr(C)]
+    struct SettingsV3 {
+        struct_size: u32,
+        integrator: u32,
+        max_depth: i32,
+        rr_depth: i32,
+        rr_prob: f32,
+        spp: u32,
+        bake_estimator: u32,
+        seed: u64,
+    }
+
     #[repr(C)]
     struct BakePointV1 {
         p: [f32; 3],
@@ -2178,7 +2230,7 @@ mod tests {
 
     #[test]
     fn old_layout_records_are_refused_not_misread() {
-        assert_eq!((ember_abi_version(), EMBER_ABI_VERSION), (3, 3));
+        assert_eq!((ember_abi_version(), EMBER_ABI_VERSION), (4, 4));
         let v1_materials = [
             MaterialV1 {
                 kind: EMBER_MATERIAL_DIFFUSE,
@@ -2313,6 +2365,7 @@ mod tests {
             spp: 1,
             bake_estimator: EMBER_BAKE_MIS,
             seed: 7,
+            sampler: EMBER_SAMPLER_DEFAULT,
         };
         let v1_settings = SettingsV1 {
             integrator: EMBER_INTEGRATOR_PATH_MIS,
@@ -2350,12 +2403,29 @@ mod tests {
             unsafe { ember_render_tile(&good, &camera, &settings, 0, 0, 2, 2, out.as_mut_ptr()) };
         assert_eq!(rendered, EMBER_OK);
         out = [-1.0; 12];
+        let v3_settings = SettingsV3 {
+            struct_size: size_of::<SettingsV3>() as u32,
+            integrator: EMBER_INTEGRATOR_PATH_MIS,
+            max_depth: 2,
+            rr_depth: 5,
+            rr_prob: 0.95,
+            spp: 1,
+            bake_estimator: EMBER_BAKE_MIS,
+            seed: 7,
+        };
+        assert_eq!(
+            (size_of::<SettingsV3>(), size_of::<EmberSettings>()),
+            (40, 48)
+        );
         let v1_camera = core::ptr::addr_of!(v1_camera).cast::<EmberCamera>();
         let v1_settings = core::ptr::addr_of!(v1_settings).cast::<EmberSettings>();
+        let v3_settings = core::ptr::addr_of!(v3_settings).cast::<EmberSettings>();
         let calls = unsafe {
             [
                 ember_render_tile(&good, v1_camera, &settings, 0, 0, 2, 2, out.as_mut_ptr()),
                 ember_render_tile(&good, &camera, v1_settings, 0, 0, 2, 2, out.as_mut_ptr()),
+                ember_render_tile(&good, &camera, v3_settings, 0, 0, 2, 2, out.as_mut_ptr()),
+                ember_bake_vertices(&good, v3_settings, &point, 1, out.as_mut_ptr()),
                 ember_bake_vertices(&good, v1_settings, &point, 1, out.as_mut_ptr()),
                 ember_bake_vertices(
                     &good,
@@ -2366,7 +2436,7 @@ mod tests {
                 ),
             ]
         };
-        assert_eq!(calls, [EMBER_ERROR_ABI; 4]);
+        assert_eq!(calls, [EMBER_ERROR_ABI; 6]);
         assert_eq!(out, [-1.0; 12], "a refused call writes nothing");
         let baked = unsafe { ember_bake_vertices(&good, &settings, &point, 1, out.as_mut_ptr()) };
         assert_eq!(baked, EMBER_OK);
@@ -2800,9 +2870,12 @@ mod tests {
             max_depth: -1,
             rr_depth: 1,
             rr_prob: 0.8,
-            spp: 3,
+            // A power of two, as ZSobol's layouts are: 3 spp would leave a quarter of each
+            // pixel's 4-sample layout unused, and 8 lights the 4x4 film's corners as well.
+            spp: 8,
             bake_estimator: EMBER_BAKE_MIS,
             seed: 11,
+            sampler: EMBER_SAMPLER_DEFAULT,
         }
     }
 
@@ -2892,7 +2965,13 @@ mod tests {
                     &view,
                     &camera,
                     &path_settings(&settings).unwrap(),
-                    &crate::sampler::Sampling::independent(settings.seed),
+                    &Sampling::new(
+                        integrator.default_sampler(),
+                        settings.seed,
+                        settings.spp,
+                        4,
+                        4,
+                    ),
                     (i % 4) as u32,
                     (i / 4) as u32,
                     0,

@@ -403,8 +403,9 @@ int main(int argc, char **argv) {
 
     /* Three renders, each by two threads. */
     static float images[3][WIDTH * HEIGHT * 3];
+    /* EMBER_SAMPLER_DEFAULT: each integrator's own, as tests/determinism renders. */
     EmberSettings settings = {sizeof(EmberSettings), EMBER_INTEGRATOR_PATH_IMPLICIT, -1, 3, 0.9f,
-                              4, EMBER_BAKE_MIS, SEED};
+                              4, EMBER_BAKE_MIS, SEED, EMBER_SAMPLER_DEFAULT};
     const uint32_t integrators[3] = {EMBER_INTEGRATOR_PATH_IMPLICIT,
                                      EMBER_INTEGRATOR_PATH_EXPLICIT, EMBER_INTEGRATOR_PATH_MIS};
     for (int k = 0; k < 3; k++) {
@@ -492,7 +493,7 @@ int main(int argc, char **argv) {
     /* The bake, both estimators; the points in two batches (keys make batching irrelevant). */
     static float bakes[2][NPOINTS * 3];
     EmberSettings bake = {sizeof(EmberSettings), EMBER_INTEGRATOR_PATH_MIS, 5, 5, 0.95f, 16,
-                          EMBER_BAKE_MIS, SEED};
+                          EMBER_BAKE_MIS, SEED, EMBER_SAMPLER_DEFAULT};
     const uint32_t estimators[2] = {EMBER_BAKE_MIS, EMBER_BAKE_EXPLICIT};
     for (int k = 0; k < 2; k++) {
         bake.bake_estimator = estimators[k];
@@ -509,6 +510,10 @@ int main(int argc, char **argv) {
            EMBER_ERROR_NULL_POINTER);
     EmberSettings bad_settings = settings;
     bad_settings.integrator = 7;
+    EXPECT(ember_render_tile(&scene, &CAMERA, &bad_settings, 0, 0, 1, 1, px),
+           EMBER_ERROR_INVALID_ARGUMENT);
+    bad_settings = settings;
+    bad_settings.sampler = EMBER_SAMPLER_ZSOBOL + 1;
     EXPECT(ember_render_tile(&scene, &CAMERA, &bad_settings, 0, 0, 1, 1, px),
            EMBER_ERROR_INVALID_ARGUMENT);
     /* The splatting integrators: not through ember_render_tile, and only with their buffers. */

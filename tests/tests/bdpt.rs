@@ -786,6 +786,10 @@ fn interrupted_bdpt_render_is_the_render_at_the_partial_spp() {
                 "2",
                 "--integrator",
                 "bdpt",
+                // Independent samples: with them a render's first N samples are the N-spp
+                // render (ZSobol lays its samples out for the whole --spp).
+                "--sampler",
+                "independent",
             ])
             .stderr(Stdio::piped())
             .spawn()

@@ -69,6 +69,7 @@ fn ember_render_refuses_path_tracing_options_on_gi_scenes_and_forwards_the_rest(
         ("--integrator", Some("mis")),
         ("--tile", Some("8")),
         ("--max-memory-gib", Some("4")),
+        ("--sampler", Some("zsobol")),
     ] {
         let mut args = vec!["render", t, "-q", "--width", "32", "--height", "24", flag];
         args.extend(value);

@@ -32,7 +32,10 @@ fn interrupted_run(
             "--height",
             "32",
         ])
+        // Independent samples: with them a render's first N samples are the N-spp render
+        // (ZSobol lays its samples out for the whole --spp).
         .args(["--spp", &SPP.to_string(), "--threads", "2"])
+        .args(["--sampler", "independent"])
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();

@@ -19,6 +19,12 @@
 //! 1.5; the mirror's Ks × 0.9) are compared in the same way against the same references and
 //! critical value, and must fail.
 //!
+//! With the Owen-scrambled Sobol' sampler (ember's default for these integrators) a pixel's
+//! samples are not independent and its sample variance says nothing about its error: the
+//! ZSobol tests render K replicates with independent seeds (`common/replicates.rs`) and
+//! compare their mean, with the variance from their spread, by Welch t-tests against the same
+//! references, with the same negative controls.
+//!
 //! `EMBER_SPP_SCALE` multiplies the sample counts (a more powerful local run),
 //! `EMBER_SEED_OFFSET` is added to every seed (for measuring how often the test fails on
 //! other seeds), and `EMBER_MITSUBA_DUMP=<dir>` writes each ember render's mean and variance
@@ -26,6 +32,7 @@
 
 mod common;
 
+use common::replicates::{welch, Estimate, Replicates};
 use common::*;
 use ember_cli::image::{read_exr, Image};
 use ember_cli::render::{render, RenderSettings, Rendered, Shard};
@@ -340,5 +347,138 @@ fn wrong_materials_fail_the_comparison() {
     assert!(
         passed_wrongly.is_empty(),
         "the comparison cannot tell these wrong scenes from Mitsuba's: {passed_wrongly:?}"
+    );
+}
+
+/// Replicates of the ZSobol comparisons: `KR` renders of `spp / KR` samples each (the same
+/// samples in all as the independent comparison).
+const KR: usize = 16;
+
+/// The committed reference as estimates of the image mean and the `BX × BY` block means
+/// (variances from the committed per-pixel variances of the mean; Mitsuba's pixels are
+/// independent).
+fn reference_estimates(stem: &str) -> (Estimate, Estimate) {
+    let (mean, var) = reference(stem);
+    let estimate = |w: u32, h: u32, m: Vec<Rgb>, v: Vec<Rgb>| Estimate {
+        width: w,
+        height: h,
+        mean: m.iter().map(|p| p.as_dvec3()).collect(),
+        var: v.iter().map(|p| p.as_dvec3()).collect(),
+        dof: f64::INFINITY,
+    };
+    (
+        estimate(1, 1, vec![mean.mean()], vec![mean_variance(&var)]),
+        estimate(
+            BX,
+            BY,
+            mean.block_means(BX, BY),
+            block_mean_variances(&var, BX, BY),
+        ),
+    )
+}
+
+/// `case` with ZSobol in [`KR`] replicates, compared with the reference: the smallest
+/// p-value of the image-mean and block tests and where it was.
+fn zsobol_case(scene: &LoadedScene, case: &Case, label: &str) -> (f64, String) {
+    let (_, path, _) = scene.path_settings().unwrap();
+    let t = Instant::now();
+    let template = RenderSettings {
+        integrator: case.integrator,
+        path,
+        spp: case.spp * spp_scale() / KR as u32,
+        seed: 0,
+        sampler: ember_kernel::sampler::SamplerKind::ZSobol,
+        tile: 16,
+        threads: 0,
+        progress: false,
+        shard: Shard::WHOLE,
+        strategies: None,
+    };
+    // The seeds come from the label; EMBER_SEED_OFFSET changes them.
+    let seeds = format!("{label} {:x}", case.seed.wrapping_add(seed_offset()));
+    let reps = Replicates::render_with(
+        &scene.data.view(),
+        &scene.camera(W, H),
+        &template,
+        KR,
+        &seeds,
+    );
+    let (mean, blocks) = reference_estimates(case.stem);
+    let m = welch(
+        &format!("{label} mean"),
+        &reps.image_mean().estimate(),
+        &mean,
+    );
+    let b = welch(
+        &format!("{label} block"),
+        &reps.blocks(BX, BY).estimate(),
+        &blocks,
+    );
+    println!(
+        "{label:44} {KR} x {} spp: {:.1} s | mean {:.5} (mitsuba {:.5}) | min p mean {:.2e}, blocks {:.2e}\n    worst: {}",
+        template.spp,
+        t.elapsed().as_secs_f64(),
+        reps.image_mean().estimate().mean[0][0],
+        mean.mean[0][0],
+        m.min_p,
+        b.min_p,
+        b.worst
+    );
+    if m.min_p < b.min_p {
+        (m.min_p, m.worst)
+    } else {
+        (b.min_p, b.worst)
+    }
+}
+
+/// [`ember_matches_mitsuba_on_mirror_and_glass`] with the ZSobol sampler: each case in
+/// [`KR`] replicates, Welch t-tests (Student tails with the replicates' K − 1 degrees of
+/// freedom) of the image mean and the block means, α = 0.01 shared (Šidák).
+#[test]
+#[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
+fn ember_with_zsobol_matches_mitsuba_on_mirror_and_glass() {
+    let a = sidak(0.01, TESTS_PER_CASE * CASES.len());
+    let mut failures = Vec::new();
+    for case in CASES {
+        let scene = scene(case.stem);
+        check_materials(&scene, case.stem.ends_with("rough"));
+        let label = format!("{} ({:?}, ZSobol)", case.stem, case.integrator);
+        let (p, worst) = zsobol_case(&scene, case, &label);
+        if p < a {
+            failures.push(worst);
+        }
+    }
+    println!("per-test significance {a:.2e}");
+    assert!(
+        failures.is_empty(),
+        "ember (ZSobol) and Mitsuba differ beyond noise:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// The negative controls of [`wrong_materials_fail_the_comparison`] with ZSobol replicates:
+/// the same wrong scenes must fail the Welch tests.
+#[test]
+#[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
+fn wrong_materials_fail_the_zsobol_comparison() {
+    let a = sidak(0.01, TESTS_PER_CASE * CASES.len());
+    let controls = [
+        (&CASES[0], Change::GlassIor133),
+        (&CASES[1], Change::MirrorKsTimes09),
+    ];
+    let mut passed_wrongly = Vec::new();
+    for (case, change) in controls {
+        let mut scene = scene(case.stem);
+        apply(&mut scene, change);
+        let label = format!("{} with {change:?} (ZSobol)", case.stem);
+        let (p, _) = zsobol_case(&scene, case, &label);
+        println!("  -> min p {p:.2e} against {a:.2e}");
+        if p >= a {
+            passed_wrongly.push(label);
+        }
+    }
+    assert!(
+        passed_wrongly.is_empty(),
+        "the ZSobol comparison cannot tell these wrong scenes from Mitsuba's: {passed_wrongly:?}"
     );
 }

@@ -98,7 +98,7 @@ pub fn bake_vertex(
             b1: 0.0,
             b2: 0.0,
         };
-        let l = li_path_from_surface(scene, si, bsdf, settings, &strategy, &mut sampler);
+        let l = li_path_from_surface(scene, si, bsdf, settings, &strategy, &mut sampler, &mut 0);
         if crate::math::is_finite(l) {
             sum += l;
         }

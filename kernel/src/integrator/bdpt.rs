@@ -332,6 +332,7 @@ fn random_walk<S: Sampler>(
     sampler: &mut S,
     path: &mut [Vertex],
     start: usize,
+    rays: &mut u32,
 ) -> usize {
     let mut n = start;
     // Roulette sees the throughput relative to the subpath's start and, in radiance transport,
@@ -341,7 +342,7 @@ fn random_walk<S: Sampler>(
     // Whether the last scattering was by a delta lobe (its densities are 0).
     let mut delta_step = false;
     while n < path.len() {
-        sampler.count_ray();
+        *rays += 1;
         let Some(hit) = scene.intersect(&ray) else {
             break;
         };
@@ -430,6 +431,7 @@ fn camera_subpath<S: Sampler>(
     settings: &PathSettings,
     sampler: &mut S,
     path: &mut [Vertex; CAMERA_PATH_VERTICES],
+    rays: &mut u32,
 ) -> usize {
     let n = capacity(settings, 2, CAMERA_PATH_VERTICES);
     path[0] = Vertex {
@@ -456,18 +458,22 @@ fn camera_subpath<S: Sampler>(
         sampler,
         &mut path[..n],
         1,
+        rays,
     )
 }
 
-/// Generates a light subpath into `path`; returns its vertex count (0 without emitters).
+/// Generates a light subpath into `path`; returns its vertex count (0 without emitters). Its
+/// numbers start at dimension [`dims::BDPT_LIGHT_SUBPATH`], whatever the camera subpath drew.
 fn light_subpath<S: Sampler>(
     scene: &SceneView<'_>,
     camera: &Camera,
     settings: &PathSettings,
     sampler: &mut S,
     path: &mut [Vertex; LIGHT_PATH_VERTICES],
+    rays: &mut u32,
 ) -> usize {
     let n = capacity(settings, 1, LIGHT_PATH_VERTICES);
+    sampler.set_dimension(dims::BDPT_LIGHT_SUBPATH);
     let u = dims::LightStart::draw(sampler);
     let Some(e) = sample_le(scene, u.select, u.position, u.direction) else {
         return 0;
@@ -504,12 +510,13 @@ fn light_subpath<S: Sampler>(
         sampler,
         &mut path[..n],
         1,
+        rays,
     )
 }
 
 /// The geometry term `|cos θ₀||cos θ₁| / d²` between two surface vertices (shading normals)
 /// times their mutual visibility.
-fn geometry<S: Sampler>(scene: &SceneView<'_>, a: &Vertex, b: &Vertex, sampler: &mut S) -> f32 {
+fn geometry(scene: &SceneView<'_>, a: &Vertex, b: &Vertex, rays: &mut u32) -> f32 {
     let d = a.p - b.p;
     let d2 = d.length_squared();
     if d2 == 0.0 || d2.is_nan() {
@@ -520,7 +527,7 @@ fn geometry<S: Sampler>(scene: &SceneView<'_>, a: &Vertex, b: &Vertex, sampler: 
     if g == 0.0 {
         return 0.0;
     }
-    sampler.count_ray();
+    *rays += 1;
     // `a.f(b)` and `b.f(a)` saw the connection as `b.p - a.p` and its negation.
     let shadow = spawn_connection(
         a.p_spawn,
@@ -548,7 +555,7 @@ struct Connection {
 
 /// Connects the first `s` light vertices and the first `t` camera vertices (pbrt's
 /// `ConnectBDPT`).
-fn connect<S: Sampler>(
+fn connect(
     scene: &SceneView<'_>,
     camera: &Camera,
     light: &[Vertex],
@@ -556,7 +563,7 @@ fn connect<S: Sampler>(
     s: usize,
     t: usize,
     heuristic: MisHeuristic,
-    sampler: &mut S,
+    rays: &mut u32,
 ) -> Option<Connection> {
     let mut sampled: Option<Vertex> = None;
     let mut raster = None;
@@ -591,7 +598,7 @@ fn connect<S: Sampler>(
         if l == Rgb::ZERO {
             return None;
         }
-        sampler.count_ray();
+        *rays += 1;
         if scene.occluded(&ray_to_camera(qs.p_spawn, qs.p_err, qs.ng(), &cs)) {
             return None;
         }
@@ -639,7 +646,7 @@ fn connect<S: Sampler>(
         if l == Rgb::ZERO {
             return None;
         }
-        sampler.count_ray();
+        *rays += 1;
         let shadow = spawn_ray_to(pt.p_spawn, pt.p_err, pt.ng(), es.p, es.p_err, es.ng);
         if scene.occluded(&shadow) {
             return None;
@@ -658,7 +665,7 @@ fn connect<S: Sampler>(
         if l == Rgb::ZERO {
             return None;
         }
-        let g = geometry(scene, qs, pt, sampler);
+        let g = geometry(scene, qs, pt, rays);
         l * g
     };
     if l == Rgb::ZERO || !crate::math::is_finite(l) {
@@ -766,7 +773,9 @@ pub fn mis_weight(
 /// `sink`, which also sees every strategy's contribution and weight ([`BdptSink`]).
 /// `raster` is the camera sample's film position (for the strategy images). Dimensions: the
 /// camera sample, [`dims::Bounce`] per camera vertex (its emitter numbers serve the `s = 1`
-/// connection there), then [`dims::LightStart`] and [`dims::LightBounce`] per light vertex.
+/// connection there), then, from [`dims::BDPT_LIGHT_SUBPATH`] on, [`dims::LightStart`] and
+/// [`dims::LightBounce`] per light vertex. Every ray traced adds 1 to `rays`.
+#[allow(clippy::too_many_arguments)]
 pub fn li_bdpt<S: Sampler, K: BdptSink>(
     scene: &SceneView<'_>,
     camera: &Camera,
@@ -777,9 +786,18 @@ pub fn li_bdpt<S: Sampler, K: BdptSink>(
     scratch: &mut BdptScratch,
     sampler: &mut S,
     sink: &mut K,
+    rays: &mut u32,
 ) -> Rgb {
-    let n_cam = camera_subpath(scene, camera, ray, settings, sampler, &mut scratch.camera);
-    let n_light = light_subpath(scene, camera, settings, sampler, &mut scratch.light);
+    let n_cam = camera_subpath(
+        scene,
+        camera,
+        ray,
+        settings,
+        sampler,
+        &mut scratch.camera,
+        rays,
+    );
+    let n_light = light_subpath(scene, camera, settings, sampler, &mut scratch.light, rays);
     let (cam, light) = (&scratch.camera[..n_cam], &scratch.light[..n_light]);
     let mut l = Rgb::ZERO;
     for t in 1..=n_cam {
@@ -788,7 +806,7 @@ pub fn li_bdpt<S: Sampler, K: BdptSink>(
             if (s == 1 && t == 1) || depth < 0 || !settings.allows(depth as u32) {
                 continue;
             }
-            let Some(c) = connect(scene, camera, light, cam, s, t, heuristic, sampler) else {
+            let Some(c) = connect(scene, camera, light, cam, s, t, heuristic, rays) else {
                 continue;
             };
             let at = c.raster.unwrap_or(raster);
@@ -1114,7 +1132,15 @@ mod tests {
             let mut sampler = IndependentSampler::new(5, u64::from(i), 0);
             let u = Vec2::new(sampler.next_1d(), sampler.next_1d());
             let ray = camera.generate_ray(i % 64, (i / 64) % 64, u);
-            let n = camera_subpath(&scene, &camera, &ray, &settings, &mut sampler, &mut path);
+            let n = camera_subpath(
+                &scene,
+                &camera,
+                &ray,
+                &settings,
+                &mut sampler,
+                &mut path,
+                &mut 0,
+            );
             if n < 3 || path[n - 1].le == Rgb::ZERO {
                 continue;
             }

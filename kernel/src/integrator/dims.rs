@@ -4,10 +4,14 @@
 //! scattering vertex of the path draws [`PER_BOUNCE`] dimensions in the order of the offsets
 //! below, whether or not it uses all of them, so that dimension `CAMERA + k·PER_BOUNCE + o`
 //! always has the same meaning. A bake sample starts with [`BAKE_VIEW`] dimensions instead
-//! (the view direction), then the same per-bounce layout. A light path (light tracing; in
-//! BDPT it follows the camera subpath) starts with [`LIGHT_START`] dimensions and draws
-//! [`PER_LIGHT_BOUNCE`] per vertex. In BDPT the camera subpath's per-bounce emitter numbers
-//! are those of its `s = 1` connection (next-event estimation) at that vertex.
+//! (the view direction), then the same per-bounce layout. A light path starts with
+//! [`LIGHT_START`] dimensions and draws [`PER_LIGHT_BOUNCE`] per vertex: at dimension 0 in
+//! light tracing, at [`BDPT_LIGHT_SUBPATH`] in BDPT, past every dimension the longest camera
+//! subpath can draw, so that a light vertex's numbers keep their dimensions whatever the
+//! length of the camera subpath (a quasi-random sampler stratifies a dimension pair over a
+//! pixel's samples only when they all use it for the same thing). In BDPT the camera
+//! subpath's per-bounce emitter numbers are those of its `s = 1` connection (next-event
+//! estimation) at that vertex.
 
 use crate::sampler::Sampler;
 use glam::Vec2;
@@ -130,3 +134,8 @@ impl LightBounce {
         }
     }
 }
+
+/// The first dimension of BDPT's light subpath: past the [`CAMERA`] numbers and the
+/// [`PER_BOUNCE`] numbers of every scattering vertex a camera subpath can hold.
+pub const BDPT_LIGHT_SUBPATH: u32 =
+    CAMERA + (crate::integrator::bdpt::CAMERA_PATH_VERTICES as u32 - 1) * PER_BOUNCE;

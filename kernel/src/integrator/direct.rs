@@ -4,7 +4,6 @@ use crate::bsdf::{BsdfView, TransportMode};
 use crate::emitter::sample_emitter;
 use crate::geometry::spawn_ray_to;
 use crate::math::SolidAnglePdf;
-use crate::sampler::Sampler;
 use crate::scene::{SceneView, SurfaceInteraction};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -26,17 +25,16 @@ pub struct DirectSample {
 /// and returns its unweighted contribution, or `None` when the
 /// point is occluded, faces away, or the BSDF is zero for it (delta lobes, the wrong side).
 /// `pdf_bsdf` is computed only when `with_bsdf_pdf` (MIS needs it; next-event estimation
-/// alone does not). The shadow ray, when one is traced, is reported to `sampler`
-/// ([`Sampler::count_ray`]); no numbers are drawn from it.
+/// alone does not). The shadow ray, when one is traced, adds 1 to `rays`.
 #[inline]
-pub fn sample_direct<S: Sampler>(
+pub fn sample_direct(
     scene: &SceneView<'_>,
     si: &SurfaceInteraction,
     bsdf: &BsdfView<'_>,
     u_select: f32,
     u_light: Vec2,
     with_bsdf_pdf: bool,
-    sampler: &mut S,
+    rays: &mut u32,
 ) -> Option<DirectSample> {
     let es = sample_emitter(scene, u_select, u_light)?;
     let to_light = es.p - si.p;
@@ -59,7 +57,7 @@ pub fn sample_direct<S: Sampler>(
         return None;
     }
     let shadow = spawn_ray_to(si.p_spawn, si.p_err, si.ng, es.p, es.p_err, es.ng);
-    sampler.count_ray();
+    *rays += 1;
     if scene.occluded(&shadow) {
         return None;
     }

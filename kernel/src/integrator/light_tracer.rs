@@ -36,14 +36,16 @@ pub fn ray_to_camera(p: Vec3, p_err: Vec3, ng: Vec3, cs: &CameraSample) -> Ray {
 /// `max_depth` keeps TinyRender's meaning: a connection from the `k`-th scattering vertex of
 /// the light path makes a path with `k` scattering vertices, so the emitter seen directly is
 /// depth 0. Russian roulette is throughput-adaptive ([`PathSettings::survives_adaptive_roulette`])
-/// on the throughput relative to the emitted `Le/p`, counted along the light path. Dimensions: [`dims::LightStart`], then [`dims::LightBounce`] per
-/// vertex.
+/// /// on the throughput relative to the emitted `Le/p`, counted along the light path.
+/// Dimensions: [`dims::LightStart`], then [`dims::LightBounce`] per vertex. Every ray traced
+/// adds 1 to `rays`.
 pub fn light_trace<S: Sampler, K: SplatSink>(
     scene: &SceneView<'_>,
     camera: &Camera,
     settings: &PathSettings,
     sampler: &mut S,
     sink: &mut K,
+    rays: &mut u32,
 ) {
     let start = dims::LightStart::draw(sampler);
     let Some(e) = sample_le(scene, start.select, start.position, start.direction) else {
@@ -55,7 +57,7 @@ pub fn light_trace<S: Sampler, K: SplatSink>(
         if let Some(cs) = camera.sample_wi(pt.p) {
             let cos = pt.n.dot(cs.wi);
             if cos > 0.0 && cs.wi.dot(pt.ng) > 0.0 {
-                sampler.count_ray();
+                *rays += 1;
                 if !scene.occluded(&ray_to_camera(pt.p, pt.p_err, pt.ng, &cs)) {
                     sink.splat(
                         cs.raster,
@@ -75,7 +77,7 @@ pub fn light_trace<S: Sampler, K: SplatSink>(
         if !settings.allows(bounces) {
             break;
         }
-        sampler.count_ray();
+        *rays += 1;
         let Some(hit) = scene.intersect(&ray) else {
             break;
         };
@@ -87,7 +89,7 @@ pub fn light_trace<S: Sampler, K: SplatSink>(
             if let Some(cs) = camera.sample_wi(si.p) {
                 let f = view.eval(cs.wi, TransportMode::Importance);
                 if f != Rgb::ZERO {
-                    sampler.count_ray();
+                    *rays += 1;
                     if !scene.occluded(&ray_to_camera(si.p_spawn, si.p_err, si.ng, &cs)) {
                         let c = beta * f * (view.abs_cos(cs.wi) * cs.we / cs.pdf.0);
                         sink.splat(cs.raster, c);

@@ -82,20 +82,22 @@ pub fn li_path<S: Sampler>(
     settings: &PathSettings,
     strategy: &PathStrategy,
     sampler: &mut S,
+    rays: &mut u32,
 ) -> Rgb {
-    sampler.count_ray();
+    *rays += 1;
     let Some(hit) = scene.intersect(ray) else {
         return Rgb::ZERO;
     };
     let si = scene.interaction(ray, &hit);
     let bsdf = scene.bsdf_at(&si);
-    scene.emitted(&si) + li_path_from_surface(scene, si, bsdf, settings, strategy, sampler)
+    scene.emitted(&si) + li_path_from_surface(scene, si, bsdf, settings, strategy, sampler, rays)
 }
 
 /// Radiance scattered at `si` toward `si.wo` (its own emission excluded), with `bsdf` at `si`
 /// as the first scattering vertex and the scene's materials further on. Per bounce the
 /// sampler's dimensions are laid out as [`dims`] says. Always inlined, so that a caller that
-/// passes a constant strategy gets a loop specialised for it.
+/// passes a constant strategy gets a loop specialised for it. Every ray it traces adds 1 to
+/// `rays`.
 #[inline(always)]
 pub fn li_path_from_surface<S: Sampler>(
     scene: &SceneView<'_>,
@@ -104,6 +106,7 @@ pub fn li_path_from_surface<S: Sampler>(
     settings: &PathSettings,
     strategy: &PathStrategy,
     sampler: &mut S,
+    rays: &mut u32,
 ) -> Rgb {
     let mut l = Rgb::ZERO;
     let mut beta = Rgb::ONE;
@@ -123,7 +126,7 @@ pub fn li_path_from_surface<S: Sampler>(
         if next_event {
             let mis = strategy.direct == DirectLighting::Mis;
             let (u_select, u_light) = (u.light_select, u.light);
-            if let Some(d) = sample_direct(scene, &si, &view, u_select, u_light, mis, sampler) {
+            if let Some(d) = sample_direct(scene, &si, &view, u_select, u_light, mis, rays) {
                 let w = if mis {
                     power_heuristic(d.pdf, d.pdf_bsdf)
                 } else {
@@ -163,7 +166,7 @@ pub fn li_path_from_surface<S: Sampler>(
             break;
         }
         let next = si.spawn_ray(s.wi);
-        sampler.count_ray();
+        *rays += 1;
         let hit = if terminal {
             settings.terminal_hit(scene, &next)
         } else {

@@ -58,7 +58,8 @@ impl Sampling {
     }
 }
 
-/// The source of uniform random numbers in `[0, 1)` for integrators and warps.
+/// The source of uniform random numbers in `[0, 1)` for integrators and warps: the numbers of
+/// one pixel sample, dimension after dimension (pbrt-v4's `Sampler` after `StartPixelSample`).
 pub trait Sampler {
     fn next_1d(&mut self) -> f32;
     #[inline]
@@ -67,41 +68,9 @@ pub trait Sampler {
         let y = self.next_1d();
         Vec2::new(x, y)
     }
-    /// Integrators call this once for every ray they trace (closest-hit and shadow), so a
-    /// sampler that travels with the path can count them ([`RayCounting`]). It draws nothing;
-    /// the default does nothing and compiles away.
-    #[inline]
-    fn count_ray(&mut self) {}
-}
-
-/// A sampler that counts the rays traced with it: the numbers are `S`'s, unchanged.
-#[derive(Clone, Copy, Debug)]
-pub struct RayCounting<S> {
-    pub inner: S,
-    pub rays: u32,
-}
-
-impl<S> RayCounting<S> {
-    #[inline]
-    #[must_use]
-    pub fn new(inner: S) -> Self {
-        Self { inner, rays: 0 }
-    }
-}
-
-impl<S: Sampler> Sampler for RayCounting<S> {
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        self.inner.next_1d()
-    }
-    #[inline]
-    fn next_2d(&mut self) -> Vec2 {
-        self.inner.next_2d()
-    }
-    #[inline]
-    fn count_ray(&mut self) {
-        self.rays = self.rays.wrapping_add(1);
-    }
+    /// Moves to dimension `d`: the next number drawn is dimension `d`'s (for layouts with
+    /// fixed dimension slots, [`crate::integrator::dims`]).
+    fn set_dimension(&mut self, d: u32);
 }
 
 /// The default seed of the command-line renderer (`--seed`): 0x656D626572, "ember" in ASCII.
@@ -142,12 +111,6 @@ impl IndependentSampler {
         }
     }
 
-    /// Jumps to dimension `d` (for integrators that want fixed dimension slots).
-    #[inline]
-    pub fn set_dimension(&mut self, d: u32) {
-        self.dimension = d;
-    }
-
     #[inline]
     #[must_use]
     pub fn dimension(&self) -> u32 {
@@ -162,6 +125,11 @@ impl Sampler for IndependentSampler {
         self.dimension = self.dimension.wrapping_add(1);
         // 24 high bits: exactly representable, in [0, 1 - 2^-24].
         (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+
+    #[inline]
+    fn set_dimension(&mut self, d: u32) {
+        self.dimension = d;
     }
 }
 

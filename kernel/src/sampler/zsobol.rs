@@ -291,6 +291,10 @@ impl Sampler for ZSobolSampler {
             to_unit(owen_scramble(sobol_u32(index, 1), s1)),
         )
     }
+    #[inline]
+    fn set_dimension(&mut self, d: u32) {
+        self.dimension = d;
+    }
 }
 
 #[cfg(test)]

@@ -4,8 +4,10 @@
 //! diffuse texture and a picture with a textured Phong material) by each path integrator,
 //! by the light tracer and by BDPT with both MIS heuristics (their splats accumulated in
 //! fixed-size fixed-point buffers, [`SplatBuffer`]), plus a bake of surface points on each of
-//! them with both bake estimators. The pixels and baked values are hashed bit for bit (FNV-1a
-//! over the little-endian bytes of each f32).
+//! them with both bake estimators. Each integrator renders with its default sampler
+//! ([`Integrator::default_sampler`]: Owen-scrambled Sobol' points except for the light tracer),
+//! as `ember render` and the C API do. The pixels and baked values are hashed bit for bit
+//! (FNV-1a over the little-endian bytes of each f32).
 //!
 //! `#![no_std]` and allocation-free: the same code runs on the host (any thread count), on
 //! aarch64 under qemu, as a wasm32 module under Node.js and in the `no_std` check. The C API
@@ -21,7 +23,7 @@ use ember_kernel::integrator::{
     PathSettings, PixelStats, Shortcuts,
 };
 use ember_kernel::material::{PhongParams, Reflectance, Surface};
-use ember_kernel::sampler::DEFAULT_SEED;
+use ember_kernel::sampler::{Sampling, DEFAULT_SEED};
 use ember_kernel::scene::{Material, SceneView};
 pub use ember_kernel::splat::SplatBuffer;
 use ember_kernel::texture::{Texture, Textures, NO_TEXTURE};
@@ -706,7 +708,13 @@ pub fn pixel(
         scene,
         camera,
         settings,
-        &ember_kernel::sampler::Sampling::independent(seed),
+        &Sampling::new(
+            integrator.default_sampler(),
+            seed,
+            spp,
+            camera.width,
+            camera.height,
+        ),
         x,
         y,
         0,
@@ -741,7 +749,7 @@ pub fn render_pixel_sum(
         scene,
         &camera(),
         &RENDER_PATH,
-        &ember_kernel::sampler::Sampling::independent(SEED),
+        &Sampling::new(integrator.default_sampler(), SEED, SPP, WIDTH, HEIGHT),
         x,
         y,
         0,
