@@ -39,6 +39,7 @@ use ember_cli::render::{render, RenderSettings, Rendered, Shard};
 use ember_cli::LoadedScene;
 use ember_kernel::integrator::Integrator;
 use ember_kernel::material::{Reflectance, Surface};
+use ember_kernel::sampler::SamplerKind;
 use ember_kernel::Rgb;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -197,25 +198,37 @@ fn seed_offset() -> u64 {
         .unwrap_or(0)
 }
 
-fn render_case(scene: &LoadedScene, case: &Case, label: &str) -> Rendered {
+/// The settings of `case`'s renders in `scene` with `sampler` and `spp` samples.
+fn case_settings(
+    scene: &LoadedScene,
+    case: &Case,
+    sampler: SamplerKind,
+    spp: u32,
+) -> RenderSettings {
     let (_, path, _) = scene.path_settings().unwrap();
+    RenderSettings {
+        integrator: case.integrator,
+        path,
+        spp,
+        seed: case.seed.wrapping_add(seed_offset()),
+        sampler,
+        tile: 16,
+        threads: 0,
+        progress: false,
+        shard: Shard::WHOLE,
+        strategies: None,
+    }
+}
+
+fn render_case(scene: &LoadedScene, case: &Case, label: &str) -> Rendered {
     let t = Instant::now();
-    let r = render(
-        &scene.data.view(),
-        &scene.camera(W, H),
-        &RenderSettings {
-            integrator: case.integrator,
-            path,
-            spp: case.spp * spp_scale(),
-            seed: case.seed.wrapping_add(seed_offset()),
-            sampler: ember_kernel::sampler::SamplerKind::Independent,
-            tile: 16,
-            threads: 0,
-            progress: false,
-            shard: Shard::WHOLE,
-            strategies: None,
-        },
+    let settings = case_settings(
+        scene,
+        case,
+        SamplerKind::Independent,
+        case.spp * spp_scale(),
     );
+    let r = render(&scene.data.view(), &scene.camera(W, H), &settings);
     println!(
         "{label:44} {} spp: {:.1} s",
         r.spp,
@@ -380,22 +393,16 @@ fn reference_estimates(stem: &str) -> (Estimate, Estimate) {
 /// `case` with ZSobol in [`KR`] replicates, compared with the reference: the smallest
 /// p-value of the image-mean and block tests and where it was.
 fn zsobol_case(scene: &LoadedScene, case: &Case, label: &str) -> (f64, String) {
-    let (_, path, _) = scene.path_settings().unwrap();
     let t = Instant::now();
-    let template = RenderSettings {
-        integrator: case.integrator,
-        path,
-        spp: case.spp * spp_scale() / KR as u32,
-        seed: 0,
-        sampler: ember_kernel::sampler::SamplerKind::ZSobol,
-        tile: 16,
-        threads: 0,
-        progress: false,
-        shard: Shard::WHOLE,
-        strategies: None,
-    };
-    // The seeds come from the label; EMBER_SEED_OFFSET changes them.
-    let seeds = format!("{label} {:x}", case.seed.wrapping_add(seed_offset()));
+    let template = case_settings(
+        scene,
+        case,
+        SamplerKind::ZSobol,
+        case.spp * spp_scale() / KR as u32,
+    );
+    // The replicates' seeds come from the label and the case's seed (EMBER_SEED_OFFSET
+    // changes them).
+    let seeds = format!("{label} {:x}", template.seed);
     let reps = Replicates::render_with(
         &scene.data.view(),
         &scene.camera(W, H),
