@@ -4,8 +4,8 @@
 //! and the second child is at [`BvhNode::offset`]; a leaf's primitives are
 //! `prim_order[offset .. offset + count]`. Traversal keeps a fixed [`MAX_DEPTH`]-entry stack and visits the
 //! nearer child first. The build (binned SAH, [`build`]) writes straight into caller slices.
-//! [`collapse`] turns the binary tree into a four-wide one ([`WideNode`]) that makes the same
-//! triangle tests in the same order with fewer, vectorised box tests.
+//! [`collapse`] turns the binary tree into a four-wide one ([`WideNode`]): fewer, vectorised
+//! box tests, children visited nearest first, the same hits ([`closest`]).
 
 mod build;
 pub mod closest;
