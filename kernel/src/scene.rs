@@ -44,6 +44,7 @@ pub enum SceneError {
     EmitterOrder { entry: usize },
     EmitterCdf { entry: usize },
     BvhPrimitive { entry: usize, index: u32 },
+    BvhLeafTriangle { entry: usize },
     TextureIndex { material: usize, index: u32 },
     TextureTexels { texture: usize },
     UvCount { positions: usize, uvs: usize },
@@ -89,6 +90,10 @@ impl core::fmt::Display for SceneError {
             Self::BvhPrimitive { entry, index } => {
                 write!(f, "BVH entry {entry} refers to missing triangle {index}")
             }
+            Self::BvhLeafTriangle { entry } => write!(
+                f,
+                "the BVH's leaf-ordered triangle {entry} is missing or not the vertices of its entry's triangle"
+            ),
             Self::TextureIndex { material, index } => {
                 write!(f, "material {material} refers to missing texture {index}")
             }
@@ -205,6 +210,21 @@ impl<'a> SceneView<'a> {
                 return Err(SceneError::BvhPrimitive { entry: i, index: t });
             }
         }
+        let (order, leaf) = (self.bvh.prim_order(), self.bvh.leaf_triangles());
+        if !leaf.is_empty() {
+            let bits = |v: &[Vec3; 3]| v.map(|p| p.to_array().map(f32::to_bits));
+            for (i, &t) in order.iter().enumerate() {
+                let same = leaf
+                    .get(i)
+                    .is_some_and(|l| bits(l) == bits(&self.triangle_vertices(t)));
+                if !same {
+                    return Err(SceneError::BvhLeafTriangle { entry: i });
+                }
+            }
+            if leaf.len() != order.len() {
+                return Err(SceneError::BvhLeafTriangle { entry: order.len() });
+            }
+        }
         self.validate_textures()
     }
 
@@ -265,9 +285,10 @@ impl<'a> SceneView<'a> {
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let wray = WatertightRay::new(ray.o, ray.d);
+        let leaf = self.bvh.leaf_triangles();
         self.bvh
-            .traverse::<false, _>(ray.o, ray.d, ray.t_max, |prim, t_max| {
-                let [p0, p1, p2] = self.triangle_vertices(prim);
+            .traverse::<false, _>(ray.o, ray.d, ray.t_max, |slot, prim, t_max| {
+                let [p0, p1, p2] = self.candidate_vertices(leaf, slot, prim);
                 let h = wray.intersect(t_max, p0, p1, p2)?;
                 // The closest-hit order (`bvh::closest`): independent of the visit order.
                 if !closest::precedes(h.t, prim, best.map(|b| (b.t, b.triangle))) {
@@ -289,11 +310,24 @@ impl<'a> SceneView<'a> {
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
         let wray = WatertightRay::new(ray.o, ray.d);
+        let leaf = self.bvh.leaf_triangles();
         self.bvh
-            .traverse::<true, _>(ray.o, ray.d, ray.t_max, |prim, t_max| {
-                let [p0, p1, p2] = self.triangle_vertices(prim);
+            .traverse::<true, _>(ray.o, ray.d, ray.t_max, |slot, prim, t_max| {
+                let [p0, p1, p2] = self.candidate_vertices(leaf, slot, prim);
                 wray.intersect(t_max, p0, p1, p2).map(|h| h.t)
             })
+    }
+
+    /// The vertices of the triangle a traversal offers at `slot` (triangle `prim`): from the
+    /// tree's leaf-ordered copy `leaf` when it has one, else through the index buffer. The
+    /// same numbers either way, so the same hits.
+    #[inline(always)]
+    fn candidate_vertices(&self, leaf: &[[Vec3; 3]], slot: u32, prim: u32) -> [Vec3; 3] {
+        if leaf.is_empty() {
+            self.triangle_vertices(prim)
+        } else {
+            leaf[slot as usize]
+        }
     }
 
     /// Whether the ray hits an emissive triangle of the emitter table before `ray.t_max`,

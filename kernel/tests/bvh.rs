@@ -92,6 +92,7 @@ impl Built {
         WideBvh {
             nodes: &self.wide,
             prim_order: &self.prim_order,
+            leaf_triangles: &[],
         }
     }
 }
@@ -179,10 +180,12 @@ fn validate_wide(b: &Built) -> usize {
 /// its children in; returns the number of triangle tests of the wide closest-hit query.
 fn assert_same_hits(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> usize {
     bvh_closest(b, tris, o, d, t_max);
-    let occluded = b.wide_bvh().traverse::<true, _>(o, d, t_max, |prim, tmax| {
-        let t = &tris[prim as usize];
-        intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)
-    });
+    let occluded = b
+        .wide_bvh()
+        .traverse::<true, _>(o, d, t_max, |_, prim, tmax| {
+            let t = &tris[prim as usize];
+            intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)
+        });
     assert_eq!(
         occluded,
         bvh_occluded(b, tris, o, d, t_max),
@@ -191,8 +194,9 @@ fn assert_same_hits(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> us
     let mut tests = 0;
     let mut best: Option<(f32, u32)> = None;
     b.wide_bvh()
-        .traverse::<false, _>(o, d, t_max, |prim, tmax| {
+        .traverse::<false, _>(o, d, t_max, |slot, prim, tmax| {
             tests += 1;
+            assert_eq!(b.prim_order[slot as usize], prim, "slot {slot}");
             let t = &tris[prim as usize];
             let h = intersect_triangle(o, d, tmax, t[0], t[1], t[2])?.t;
             if !precedes(h, prim, best) {
@@ -496,7 +500,7 @@ fn brute_closest(tris: &[Tri], o: Vec3, d: Vec3) -> Option<(u32, f32)> {
 fn bvh_closest(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> Option<(u32, f32)> {
     let search = |wide: bool| {
         let mut best: Option<(u32, f32)> = None;
-        let hit = |prim: u32, tmax: f32| {
+        let hit = |_: u32, prim: u32, tmax: f32| {
             let t = &tris[prim as usize];
             let h = intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)?;
             if !precedes(h, prim, best.map(|(p, t)| (t, p))) {
@@ -523,7 +527,7 @@ fn bvh_closest(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> Option<
 }
 
 fn bvh_occluded(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> bool {
-    b.bvh().traverse::<true, _>(o, d, t_max, |prim, tmax| {
+    b.bvh().traverse::<true, _>(o, d, t_max, |_, prim, tmax| {
         let t = &tris[prim as usize];
         intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)
     })
@@ -941,12 +945,12 @@ fn wide_collapse_edge_cases() {
         Vec3::ZERO,
         Vec3::X,
         f32::INFINITY,
-        |_, _| panic!("called")
+        |_, _, _| panic!("called")
     ));
     let nan = Vec3::splat(f32::NAN);
     assert!(!empty
         .wide_bvh()
-        .traverse::<false, _>(nan, nan, f32::INFINITY, |_, _| panic!("called")));
+        .traverse::<false, _>(nan, nan, f32::INFINITY, |_, _, _| panic!("called")));
     // One leaf, two leaves, and a small soup: same answers as binary.
     let soup = random_soup(40, 5);
     for n in [1, 2, 3, 5, 40] {
@@ -1090,7 +1094,7 @@ fn build_errors_and_empty_scene() {
     let mut called = false;
     assert!(!empty
         .bvh()
-        .traverse::<false, _>(Vec3::ZERO, Vec3::X, f32::INFINITY, |_, _| {
+        .traverse::<false, _>(Vec3::ZERO, Vec3::X, f32::INFINITY, |_, _, _| {
             called = true;
             Some(0.0)
         }));
@@ -1099,7 +1103,7 @@ fn build_errors_and_empty_scene() {
         nodes: &[],
         prim_order: &[],
     };
-    assert!(!none.traverse::<true, _>(Vec3::ZERO, Vec3::X, 1.0, |_, _| Some(0.0)));
+    assert!(!none.traverse::<true, _>(Vec3::ZERO, Vec3::X, 1.0, |_, _, _| Some(0.0)));
     assert!(BvhError::TooDeep
         .to_string()
         .contains(&ember_kernel::bvh::MAX_DEPTH.to_string()));

@@ -105,6 +105,7 @@ struct Scene {
     nodes: Vec<BvhNode>,
     wide: Vec<WideNode>,
     prim_order: Vec<u32>,
+    leaf_triangles: Vec<[Vec3; 3]>,
     build_seconds: f64,
 }
 
@@ -215,6 +216,9 @@ impl Scene {
         let normals = positions.iter().map(|p| p.normalize_or_zero()).collect();
         let start = Instant::now();
         let (nodes, wide, prim_order) = build_bvh(&positions, &triangles);
+        let mut leaf_triangles = vec![[Vec3::ZERO; 3]; prim_order.len()];
+        bvh::gather_leaf_triangles(&positions, &triangles, &prim_order, &mut leaf_triangles)
+            .expect("leaf triangles");
         let build_seconds = start.elapsed().as_secs_f64();
         Self {
             name,
@@ -226,6 +230,7 @@ impl Scene {
             nodes,
             wide,
             prim_order,
+            leaf_triangles,
             build_seconds,
         }
     }
@@ -250,6 +255,7 @@ impl Scene {
                 WideBvh {
                     nodes: &self.wide,
                     prim_order: &self.prim_order,
+                    leaf_triangles: &self.leaf_triangles,
                 }
                 .into()
             },
@@ -323,14 +329,16 @@ impl Scene {
     }
 
     /// Bytes of the data the renderer keeps and traverses: (wide nodes, triangle indices,
-    /// positions, prim order); the binary nodes are dropped after the collapse.
-    fn bytes(&self) -> [usize; 4] {
+    /// positions, prim order, leaf-ordered vertices); the binary nodes are dropped after the
+    /// collapse.
+    fn bytes(&self) -> [usize; 5] {
         use std::mem::size_of_val;
         [
             size_of_val(self.wide.as_slice()),
             size_of_val(self.triangles.as_slice()),
             size_of_val(self.positions.as_slice()),
             size_of_val(self.prim_order.as_slice()),
+            size_of_val(self.leaf_triangles.as_slice()),
         ]
     }
 }
@@ -349,20 +357,21 @@ fn scene(i: usize) -> &'static Scene {
 }
 
 fn print_memory(s: &Scene) {
-    let [nodes, tris, pos, order] = s.bytes();
+    let [nodes, tris, pos, order, leaf] = s.bytes();
     let n = s.triangles.len() as f64;
     println!(
-        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} 4-wide BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1}); + normals {:.1} + material ids 4.0 for shading",
+        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} 4-wide BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1} + leaf-ordered vertices {:.1}); + normals {:.1} + material ids 4.0 for shading",
         s.name,
         s.triangles.len(),
         s.positions.len(),
         s.wide.len(),
         s.build_seconds,
-        (nodes + tris + pos + order) as f64 / n,
+        (nodes + tris + pos + order + leaf) as f64 / n,
         nodes as f64 / n,
         tris as f64 / n,
         pos as f64 / n,
         order as f64 / n,
+        leaf as f64 / n,
         std::mem::size_of_val(s.normals.as_slice()) as f64 / n,
     );
 }

@@ -17,8 +17,8 @@ pub use build::{
 };
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 pub use wide::{
-    collapse, max_wide_nodes, WideBvh, WideNode, SMALL_TREE_NODES, WIDE_LEAF, WIDE_MAX_DEPTH,
-    WIDE_TRAVERSAL_STACK, WIDTH,
+    collapse, gather_leaf_triangles, max_wide_nodes, WideBvh, WideNode, SMALL_TREE_NODES,
+    WIDE_LEAF, WIDE_MAX_DEPTH, WIDE_TRAVERSAL_STACK, WIDTH,
 };
 
 use crate::geometry::Aabb;
@@ -45,9 +45,19 @@ impl<'a> SceneBvh<'a> {
         }
     }
 
+    /// The wide tree's [`WideBvh::leaf_triangles`] (empty for the binary tree).
+    #[inline]
+    #[must_use]
+    pub fn leaf_triangles(&self) -> &'a [[Vec3; 3]] {
+        match self {
+            Self::Binary(_) => &[],
+            Self::Wide(w) => w.leaf_triangles,
+        }
+    }
+
     /// [`Bvh::traverse`] or [`WideBvh::traverse`].
     #[inline]
-    pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, f32) -> Option<f32>>(
+    pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
         &self,
         o: Vec3,
         d: Vec3,

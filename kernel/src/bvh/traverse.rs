@@ -16,12 +16,12 @@ pub struct Bvh<'a> {
 
 impl Bvh<'_> {
     /// Visits the leaves that the ray `o + t·d`, `t < t_max`, may hit, nearest child first, and
-    /// calls `hit(prim, t_max)` for each primitive. `hit` returns the distance of a hit closer
+    /// calls `hit(slot, prim, t_max)` for each primitive (`slot`: its index in `prim_order`). `hit` returns the distance of a hit closer
     /// than the `t_max` it was given. With `ANY_HIT`, traversal stops at the first hit
     /// (shadow rays); otherwise `t_max` shrinks to the closest hit so far.
     /// Returns whether anything was hit.
     #[inline]
-    pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, f32) -> Option<f32>>(
+    pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
         &self,
         o: Vec3,
         d: Vec3,
@@ -42,8 +42,9 @@ impl Bvh<'_> {
             if node.bounds().hit(o, inv_d, neg, t_max) {
                 if node.is_leaf() {
                     let first = node.offset as usize;
-                    for &prim in &self.prim_order[first..first + usize::from(node.count)] {
-                        if let Some(t) = hit(prim, t_max) {
+                    let prims = &self.prim_order[first..first + usize::from(node.count)];
+                    for (slot, &prim) in (first as u32..).zip(prims) {
+                        if let Some(t) = hit(slot, prim, t_max) {
                             any = true;
                             if ANY_HIT {
                                 return true;

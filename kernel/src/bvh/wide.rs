@@ -201,16 +201,49 @@ fn set_lane(node: &mut WideNode, lane: usize, child: &BvhNode, target: u32) {
 pub struct WideBvh<'a> {
     pub nodes: &'a [WideNode],
     pub prim_order: &'a [u32],
+    /// The vertices of each triangle in leaf order (`leaf_triangles[slot]` are those of
+    /// triangle `prim_order[slot]`, [`gather_leaf_triangles`]), so that a leaf's triangle tests
+    /// read one contiguous run instead of an index and three vertices each; or empty, and the
+    /// scene reads them through its index buffer.
+    pub leaf_triangles: &'a [[Vec3; 3]],
+}
+
+/// Writes the vertices of triangle `prim_order[slot]` to `out[slot]` for every slot (the
+/// [`WideBvh::leaf_triangles`] of a tree over `triangles`).
+///
+/// # Errors
+/// [`BvhError::NodeCapacity`] if `out` is not as long as `prim_order`; [`BvhError::Malformed`]
+/// if `prim_order` names a triangle `triangles` lacks or a triangle a vertex `positions` lacks.
+pub fn gather_leaf_triangles(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    prim_order: &[u32],
+    out: &mut [[Vec3; 3]],
+) -> Result<(), BvhError> {
+    if out.len() != prim_order.len() {
+        return Err(BvhError::NodeCapacity {
+            needed: prim_order.len(),
+            given: out.len(),
+        });
+    }
+    for (o, &prim) in out.iter_mut().zip(prim_order) {
+        let tri = triangles.get(prim as usize).ok_or(BvhError::Malformed)?;
+        for (v, &i) in o.iter_mut().zip(tri) {
+            *v = *positions.get(i as usize).ok_or(BvhError::Malformed)?;
+        }
+    }
+    Ok(())
 }
 
 impl WideBvh<'_> {
     /// As [`super::Bvh::traverse`], nearest child first: visits the leaves that the ray
-    /// `o + t·d`, `t < t_max`, may hit and calls `hit(prim, t_max)` for each primitive; `hit`
+    /// `o + t·d`, `t < t_max`, may hit and calls `hit(slot, prim, t_max)` for each primitive
+    /// (`slot`: its index in `prim_order` and [`Self::leaf_triangles`]); `hit`
     /// returns the distance of a hit closer than the `t_max` it was given. With `ANY_HIT`,
     /// traversal stops at the first hit (shadow rays); otherwise `t_max` shrinks to the
     /// closest hit so far. Returns whether anything was hit.
     #[inline]
-    pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, f32) -> Option<f32>>(
+    pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
         &self,
         o: Vec3,
         d: Vec3,
@@ -226,7 +259,11 @@ impl WideBvh<'_> {
 
     /// [`Self::traverse`] with a stack of `STACK` entries.
     #[inline]
-    fn traverse_with<const ANY_HIT: bool, F: FnMut(u32, f32) -> Option<f32>, const STACK: usize>(
+    fn traverse_with<
+        const ANY_HIT: bool,
+        F: FnMut(u32, u32, f32) -> Option<f32>,
+        const STACK: usize,
+    >(
         &self,
         o: Vec3,
         d: Vec3,
@@ -289,8 +326,9 @@ impl WideBvh<'_> {
                 let lane = leaf % WIDTH;
                 let first = (parent.child[lane] & !WIDE_LEAF) as usize;
                 let count = usize::from(parent.count[lane]);
-                for &prim in &self.prim_order[first..first + count] {
-                    if let Some(t) = hit(prim, t_max) {
+                let prims = &self.prim_order[first..first + count];
+                for (slot, &prim) in (first as u32..).zip(prims) {
+                    if let Some(t) = hit(slot, prim, t_max) {
                         any = true;
                         if ANY_HIT {
                             return true;

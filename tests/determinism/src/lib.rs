@@ -595,6 +595,8 @@ pub struct Scene {
     pub bvh_nodes: [WideNode; WIDE_NODES],
     pub bvh_node_count: usize,
     pub bvh_prim_order: [u32; TRIANGLES],
+    /// The triangles' vertices in leaf order, as the command line traces them.
+    pub bvh_leaf_triangles: [[Vec3; 3]; TRIANGLES],
 }
 
 impl Default for Scene {
@@ -624,6 +626,7 @@ impl Scene {
             bvh_nodes: [WideNode::default(); WIDE_NODES],
             bvh_node_count: 0,
             bvh_prim_order: [0; TRIANGLES],
+            bvh_leaf_triangles: [[Vec3::ZERO; 3]; TRIANGLES],
         };
         for (q, quad) in QUADS.iter().enumerate() {
             for (c, corner) in quad.corners.iter().enumerate() {
@@ -662,6 +665,13 @@ impl Scene {
         )
         .expect("BVH build");
         s.bvh_node_count = bvh::collapse(&binary[..used], &mut s.bvh_nodes).expect("BVH collapse");
+        bvh::gather_leaf_triangles(
+            &s.positions,
+            &s.triangles,
+            &s.bvh_prim_order,
+            &mut s.bvh_leaf_triangles,
+        )
+        .expect("leaf triangles");
         s
     }
 
@@ -679,6 +689,7 @@ impl Scene {
             bvh: WideBvh {
                 nodes: &self.bvh_nodes[..self.bvh_node_count],
                 prim_order: &self.bvh_prim_order,
+                leaf_triangles: &self.bvh_leaf_triangles,
             }
             .into(),
             textures: Textures {
