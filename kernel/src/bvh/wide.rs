@@ -307,7 +307,7 @@ impl WideBvh<'_> {
                 sp += 1;
             }
             // Take the next child whose box the ray still enters before the closest hit so
-            // far (the binary traversal tests the box at this point); run the leaves.
+            // far (the bound may have shrunk since it was pushed); run the leaves.
             loop {
                 if sp == 0 {
                     return any;
