@@ -138,8 +138,9 @@ struct RenderArgs {
     seed: u64,
     /// Sample sequence: zsobol, Owen-scrambled Sobol' points with pixels in Morton order, laid
     /// out for the render's spp (stratified within pixels, blue-noise error across them), or
-    /// independent. Default: zsobol, except independent for the light tracer (whose error
-    /// ZSobol does not lower).
+    /// independent. Default: zsobol for explicit and MIS path tracing and BDPT, independent for
+    /// implicit path tracing and the light tracer (whose error at equal time ZSobol does not
+    /// lower).
     #[arg(long, value_parser = ember_cli::bench::parse_sampler)]
     sampler: Option<ember_kernel::sampler::SamplerKind>,
     /// Worker threads (default: one per core). Does not change the image.

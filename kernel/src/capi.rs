@@ -266,8 +266,8 @@ pub const EMBER_BDPT_MAX_DEPTH: i32 = 64;
 const _: () = assert!(EMBER_BDPT_MAX_DEPTH as u32 == bdpt::BDPT_MAX_DEPTH);
 
 /// [`EmberSettings::sampler`]: the integrator's default, as the command line's: Owen-scrambled
-/// Sobol' points for the path tracers and BDPT, independent numbers for the light tracer
-/// (0, so that zeroed settings get it).
+/// Sobol' points for explicit and MIS path tracing and BDPT, independent numbers for implicit
+/// path tracing and the light tracer (0, so that zeroed settings get it).
 pub const EMBER_SAMPLER_DEFAULT: u32 = 0;
 /// [`EmberSettings::sampler`]: independent uniform numbers hashed from (seed, pixel, sample,
 /// dimension).

@@ -5,7 +5,8 @@
 //! by the light tracer and by BDPT with both MIS heuristics (their splats accumulated in
 //! fixed-size fixed-point buffers, [`SplatBuffer`]), plus a bake of surface points on each of
 //! them with both bake estimators. Each integrator renders with its default sampler
-//! ([`Integrator::default_sampler`]: Owen-scrambled Sobol' points except for the light tracer),
+//! ([`Integrator::default_sampler`]: Owen-scrambled Sobol' points for explicit and MIS path
+//! tracing and BDPT, independent numbers for implicit path tracing and the light tracer),
 //! as `ember render` and the C API do. The pixels and baked values are hashed bit for bit
 //! (FNV-1a over the little-endian bytes of each f32).
 //!
