@@ -126,8 +126,8 @@
 #define EMBER_BDPT_MAX_DEPTH 64
 
 // [`EmberSettings::sampler`]: the integrator's default, as the command line's: Owen-scrambled
-// Sobol' points for the path tracers and BDPT, independent numbers for the light tracer
-// (0, so that zeroed settings get it).
+// Sobol' points for explicit and MIS path tracing and BDPT, independent numbers for implicit
+// path tracing and the light tracer (0, so that zeroed settings get it).
 #define EMBER_SAMPLER_DEFAULT 0
 
 // [`EmberSettings::sampler`]: independent uniform numbers hashed from (seed, pixel, sample,
