@@ -85,6 +85,9 @@ const CASES: &[Case] = &[
     },
 ];
 
+/// The negative controls: a case (index into [`CASES`]) rendered with a wrong material.
+const CONTROLS: [(usize, Change); 2] = [(0, Change::GlassIor133), (1, Change::MirrorKsTimes09)];
+
 /// Which material a negative control changes, and how.
 #[derive(Clone, Copy, Debug)]
 enum Change {
@@ -336,10 +339,7 @@ fn ember_matches_mitsuba_on_mirror_and_glass() {
 #[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
 fn wrong_materials_fail_the_comparison() {
     let z_crit = critical();
-    let controls = [
-        (&CASES[0], Change::GlassIor133),
-        (&CASES[1], Change::MirrorKsTimes09),
-    ];
+    let controls = CONTROLS.map(|(case, change)| (&CASES[case], change));
     let mut passed_wrongly = Vec::new();
     for (case, change) in controls {
         let mut scene = scene(case.stem);
@@ -469,10 +469,7 @@ fn ember_with_zsobol_matches_mitsuba_on_mirror_and_glass() {
 #[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
 fn wrong_materials_fail_the_zsobol_comparison() {
     let a = sidak(0.01, TESTS_PER_CASE * CASES.len());
-    let controls = [
-        (&CASES[0], Change::GlassIor133),
-        (&CASES[1], Change::MirrorKsTimes09),
-    ];
+    let controls = CONTROLS.map(|(case, change)| (&CASES[case], change));
     let mut passed_wrongly = Vec::new();
     for (case, change) in controls {
         let mut scene = scene(case.stem);
