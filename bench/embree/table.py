@@ -116,21 +116,21 @@ def main():
     L.append("ember: `SceneData::build_bvh` as the host runs it (triangle bounds, binned SAH over 16 bins, leaves of "
              "up to 4 triangles, nodes trimmed), single-threaded, 3 builds. Kernel bytes = what traversal reads: "
              "128-byte four-wide nodes + 4-byte prim order + 12-byte triangle indices + 12-byte positions (the "
-             "positions are shared by about 2 triangles each) + the 36-byte leaf-ordered vertices of scenes of at "
-             "least 65,536 triangles (`LEAF_TRIANGLES_FROM`). Embree: `rtcCommitScene` (BVH8 over triangle4, default quality) "
+             "positions are shared by about 2 triangles each) + the 144-byte groups of four triangles the lane-wise "
+             "test reads (leaves aligned to groups, so prim order and groups are padded to whole groups per leaf). Embree: `rtcCommitScene` (BVH8 over triangle4, default quality) "
              "in embreex, build ms over its fresh scenes (1 thread pinned / 2 threads); memory = RSS growth per "
              "triangle while creating the geometry (Embree's copy of vertices and indices, 16-byte vertex stride "
              "in embreex) and during the first commit (BVH and whatever the builder keeps); RSS deltas are "
              "page-granular and meaningless for the small scenes.\n")
     L.append("| scene | triangles | ember build ms min / median | Embree build ms 1T min / median | Embree build ms 2T min / median "
-             "| ember kernel bytes/tri (nodes + prim order + indices + positions + leaf vertices) | Embree bytes/tri geometry + BVH (RSS) |")
+             "| ember kernel bytes/tri (nodes + prim order + indices + positions + triangle groups) | Embree bytes/tri geometry + BVH (RSS) |")
     L.append("|---|---:|---:|---:|---:|---|---:|")
     for s in scenes:
         b = builds[s]
         n = b["triangles"]
         bs = sorted(b["build_s"])
         parts = [b.get(k, 0) / n for k in ("bytes_nodes", "bytes_prim_order", "bytes_triangles", "bytes_positions",
-                                            "bytes_leaf_triangles")]
+                                            "bytes_leaf_groups")]
 
         def bms(r):
             if r is None:

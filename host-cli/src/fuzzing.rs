@@ -112,7 +112,8 @@ pub fn obj(obj: &[u8], mtl: &[u8]) -> Outcome {
         Ok(scene) => {
             let n = scene.triangles.len();
             assert!(n > 0, "scene without triangles accepted");
-            assert_eq!(scene.bvh_prim_order.len(), n);
+            assert!(scene.bvh_prim_order.len() >= n);
+            assert_eq!(scene.bvh_leaf_groups.len() * 4, scene.bvh_prim_order.len());
             assert!(!scene.bvh_nodes.is_empty() && scene.bvh_nodes.len() <= n);
             assert!(scene.positions.iter().all(|p| p.is_finite()));
             assert!(scene.emitter_cdf.iter().all(|c| c.is_finite()));

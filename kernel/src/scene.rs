@@ -2,7 +2,9 @@
 
 use crate::bsdf::SurfaceBsdf;
 use crate::bvh::{closest, SceneBvh};
-use crate::geometry::{inset_barycentrics, triangle_point, Ray, WatertightRay};
+use crate::geometry::{
+    inset_barycentrics, triangle_point, Ray, TriangleHit, WatertightRay, GROUP_WIDTH,
+};
 use crate::math::Frame;
 use crate::texture::{Textures, NO_TEXTURE};
 use crate::Rgb;
@@ -92,7 +94,7 @@ impl core::fmt::Display for SceneError {
             }
             Self::BvhLeafTriangle { entry } => write!(
                 f,
-                "the BVH's leaf-ordered triangle {entry} is missing or not the vertices of its entry's triangle"
+                "the BVH's triangle group lane {entry} is missing or not the vertices of its entry's triangle"
             ),
             Self::TextureIndex { material, index } => {
                 write!(f, "material {material} refers to missing texture {index}")
@@ -210,19 +212,17 @@ impl<'a> SceneView<'a> {
                 return Err(SceneError::BvhPrimitive { entry: i, index: t });
             }
         }
-        let (order, leaf) = (self.bvh.prim_order(), self.bvh.leaf_triangles());
-        if !leaf.is_empty() {
-            let bits = |v: &[Vec3; 3]| v.map(|p| p.to_array().map(f32::to_bits));
+        let (order, groups) = (self.bvh.prim_order(), self.bvh.leaf_groups());
+        if !groups.is_empty() {
+            if groups.len() != order.len().div_ceil(GROUP_WIDTH) {
+                return Err(SceneError::BvhLeafTriangle { entry: order.len() });
+            }
+            let bits = |v: [Vec3; 3]| v.map(|p| p.to_array().map(f32::to_bits));
             for (i, &t) in order.iter().enumerate() {
-                let same = leaf
-                    .get(i)
-                    .is_some_and(|l| bits(l) == bits(&self.triangle_vertices(t)));
-                if !same {
+                let lane = groups[i / GROUP_WIDTH].triangle(i % GROUP_WIDTH);
+                if bits(lane) != bits(self.triangle_vertices(t)) {
                     return Err(SceneError::BvhLeafTriangle { entry: i });
                 }
-            }
-            if leaf.len() != order.len() {
-                return Err(SceneError::BvhLeafTriangle { entry: order.len() });
             }
         }
         self.validate_textures()
@@ -285,22 +285,21 @@ impl<'a> SceneView<'a> {
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let wray = WatertightRay::new(ray.o, ray.d);
-        let leaf = self.bvh.leaf_triangles();
         self.bvh
-            .traverse::<false, _>(ray.o, ray.d, ray.t_max, |slot, prim, t_max| {
-                let [p0, p1, p2] = self.candidate_vertices(leaf, slot, prim);
-                let h = wray.intersect(t_max, p0, p1, p2)?;
-                // The closest-hit order (`bvh::closest`): independent of the visit order.
-                if !closest::precedes(h.t, prim, best.map(|b| (b.t, b.triangle))) {
-                    return None;
-                }
-                best = Some(Hit {
-                    t: h.t,
-                    triangle: prim,
-                    b1: h.b1,
-                    b2: h.b2,
-                });
-                Some(closest::bound_after(h.t))
+            .traverse_leaves::<false, _>(ray.o, ray.d, ray.t_max, |first, count, t_max| {
+                self.leaf_hits::<false>(&wray, first, count, t_max, |prim, h| {
+                    // The closest-hit order (`bvh::closest`): independent of the visit order.
+                    if !closest::precedes(h.t, prim, best.map(|b| (b.t, b.triangle))) {
+                        return None;
+                    }
+                    best = Some(Hit {
+                        t: h.t,
+                        triangle: prim,
+                        b1: h.b1,
+                        b2: h.b2,
+                    });
+                    Some(closest::bound_after(h.t))
+                })
             });
         best
     }
@@ -310,24 +309,73 @@ impl<'a> SceneView<'a> {
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
         let wray = WatertightRay::new(ray.o, ray.d);
-        let leaf = self.bvh.leaf_triangles();
         self.bvh
-            .traverse::<true, _>(ray.o, ray.d, ray.t_max, |slot, prim, t_max| {
-                let [p0, p1, p2] = self.candidate_vertices(leaf, slot, prim);
-                wray.intersect(t_max, p0, p1, p2).map(|h| h.t)
+            .traverse_leaves::<true, _>(ray.o, ray.d, ray.t_max, |first, count, t_max| {
+                self.leaf_hits::<true>(&wray, first, count, t_max, |_, h| Some(h.t))
             })
     }
 
-    /// The vertices of the triangle a traversal offers at `slot` (triangle `prim`): from the
-    /// tree's leaf-ordered copy `leaf` when it has one, else through the index buffer. The
-    /// same numbers either way, so the same hits.
+    /// Tests the triangles of the leaf `prim_order[first .. first + count]` in slot order and
+    /// offers each hit closer than the current bound to `accept(prim, hit)`, which returns
+    /// the bound after it if it takes it; returns the last bound taken (with `ANY_HIT`, the
+    /// first). With leaf groups, four triangles are tested at once against the bound at the
+    /// start of their group: a hit is offered only if it precedes every hit taken, so the
+    /// hits taken are those of the one-by-one test (`bvh::closest`), and the lane test
+    /// computes each hit bit for bit as the scalar test does.
     #[inline(always)]
-    fn candidate_vertices(&self, leaf: &[[Vec3; 3]], slot: u32, prim: u32) -> [Vec3; 3] {
-        if leaf.is_empty() {
-            self.triangle_vertices(prim)
-        } else {
-            leaf[slot as usize]
+    fn leaf_hits<const ANY_HIT: bool>(
+        &self,
+        wray: &WatertightRay,
+        first: u32,
+        count: u32,
+        mut t_max: f32,
+        mut accept: impl FnMut(u32, TriangleHit) -> Option<f32>,
+    ) -> Option<f32> {
+        let (order, groups) = (self.bvh.prim_order(), self.bvh.leaf_groups());
+        let mut bound = None;
+        let mut offer = |prim: u32, h: TriangleHit, t_max: &mut f32| -> bool {
+            if let Some(t) = accept(prim, h) {
+                *t_max = t_max.min(t);
+                bound = Some(*t_max);
+                return ANY_HIT;
+            }
+            false
+        };
+        let (first, end) = (first as usize, (first + count) as usize);
+        if groups.is_empty() {
+            for &prim in &order[first..end] {
+                let [p0, p1, p2] = self.triangle_vertices(prim);
+                if let Some(h) = wray.intersect(t_max, p0, p1, p2) {
+                    if offer(prim, h, &mut t_max) {
+                        break;
+                    }
+                }
+            }
+            return bound;
         }
+        let mut slot = first;
+        while slot < end {
+            let g = slot / GROUP_WIDTH;
+            let base = g * GROUP_WIDTH;
+            let lanes_end = end.min(base + GROUP_WIDTH);
+            let lanes = ((1u32 << (lanes_end - base)) - 1) & !((1u32 << (slot - base)) - 1);
+            let hits = wray.intersect_group(t_max, &groups[g], lanes);
+            let mut mask = hits.mask;
+            while mask != 0 {
+                let lane = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let h = TriangleHit {
+                    t: hits.t[lane],
+                    b1: hits.b1[lane],
+                    b2: hits.b2[lane],
+                };
+                if offer(order[base + lane], h, &mut t_max) {
+                    return bound;
+                }
+            }
+            slot = lanes_end;
+        }
+        bound
     }
 
     /// Whether the ray hits an emissive triangle of the emitter table before `ray.t_max`,

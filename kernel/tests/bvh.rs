@@ -5,13 +5,16 @@
 
 use ember_kernel::bvh::closest::{bound_after, precedes};
 use ember_kernel::bvh::{
-    build, collapse, max_nodes, max_wide_nodes, Bvh, BvhError, BvhNode, WideBvh, WideNode,
-    MAX_LEAF_PRIMS, TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH, WIDTH,
+    align_leaves, aligned_order_len, build, collapse, gather_leaf_groups, max_nodes,
+    max_wide_nodes, Bvh, BvhError, BvhNode, WideBvh, WideNode, MAX_LEAF_PRIMS, TRAVERSAL_STACK,
+    WIDE_LEAF, WIDE_MAX_DEPTH, WIDTH,
 };
-use ember_kernel::geometry::{intersect_triangle, Aabb};
+use ember_kernel::geometry::{intersect_triangle, Aabb, Ray, TriangleGroup, GROUP_WIDTH};
 use ember_kernel::glam::Vec3;
 use ember_kernel::math::warp;
 use ember_kernel::sampler::{IndependentSampler, Sampler};
+use ember_kernel::scene::SceneView;
+use ember_kernel::texture::Textures;
 use std::collections::HashMap;
 
 type Tri = [Vec3; 3];
@@ -56,6 +59,14 @@ struct Built {
     nodes: Vec<BvhNode>,
     prim_order: Vec<u32>,
     wide: Vec<WideNode>,
+    /// The wide tree with its leaves aligned to groups of four (`align_leaves`), its order
+    /// and triangle groups, and the soup as a scene's vertex and index buffers: the layout the
+    /// renderer traces, through `SceneView`'s lane-wise leaf test.
+    grouped: Vec<WideNode>,
+    grouped_order: Vec<u32>,
+    groups: Vec<TriangleGroup>,
+    positions: Vec<Vec3>,
+    indices: Vec<[u32; 3]>,
 }
 
 impl Built {
@@ -66,18 +77,53 @@ impl Built {
         let used = build(&bounds, &mut nodes, &mut prim_order).expect("build");
         assert!(used >= 1 && used <= max_nodes(tris.len()), "used {used}");
         nodes.truncate(used);
-        Self::with_nodes(nodes, prim_order)
+        Self::with_nodes(nodes, prim_order, tris)
     }
 
-    /// Collapses `nodes` to the wide tree as well.
-    fn with_nodes(nodes: Vec<BvhNode>, prim_order: Vec<u32>) -> Self {
+    /// Collapses `nodes` to the wide tree as well, and lays that out in groups.
+    fn with_nodes(nodes: Vec<BvhNode>, prim_order: Vec<u32>, tris: &[Tri]) -> Self {
         let mut wide = vec![WideNode::default(); max_wide_nodes(nodes.len())];
         let used = collapse(&nodes, &mut wide).expect("collapse");
         wide.truncate(used);
+        let mut grouped = wide.clone();
+        let mut grouped_order = vec![0u32; aligned_order_len(&wide)];
+        let len = align_leaves(&mut grouped, &prim_order, &mut grouped_order).expect("align");
+        assert_eq!(len, grouped_order.len());
+        let positions: Vec<Vec3> = tris.iter().flatten().copied().collect();
+        let indices: Vec<[u32; 3]> = (0..tris.len() as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+        let mut groups = vec![TriangleGroup::default(); len / GROUP_WIDTH];
+        gather_leaf_groups(&positions, &indices, &grouped_order, &mut groups).expect("groups");
         Self {
             nodes,
             prim_order,
             wide,
+            grouped,
+            grouped_order,
+            groups,
+            positions,
+            indices,
+        }
+    }
+
+    /// The soup as the renderer sees it, traced through the grouped wide tree.
+    fn scene(&self) -> SceneView<'_> {
+        SceneView {
+            positions: &self.positions,
+            normals: &self.positions,
+            triangles: &self.indices,
+            triangle_materials: &[],
+            materials: &[],
+            emitter_triangles: &[],
+            emitter_cdf: &[],
+            bvh: WideBvh {
+                nodes: &self.grouped,
+                prim_order: &self.grouped_order,
+                leaf_groups: &self.groups,
+            }
+            .into(),
+            textures: Textures::NONE,
         }
     }
 
@@ -92,7 +138,7 @@ impl Built {
         WideBvh {
             nodes: &self.wide,
             prim_order: &self.prim_order,
-            leaf_triangles: &[],
+            leaf_groups: &[],
         }
     }
 }
@@ -523,14 +569,39 @@ fn bvh_closest(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> Option<
         search(true),
         "o={o} d={d}: binary and wide trees differ"
     );
+    let mut ray = Ray::new(o, d);
+    ray.t_max = t_max;
+    let grouped = b.scene().intersect(&ray);
+    assert_eq!(
+        grouped.map(|h| (h.triangle, h.t.to_bits())),
+        binary.map(|(p, t)| (p, t.to_bits())),
+        "o={o} d={d} t_max={t_max}: the grouped wide tree differs from the binary tree"
+    );
+    if let (Some(h), Some((p, _))) = (grouped, binary) {
+        let t = &tris[p as usize];
+        let scalar = intersect_triangle(o, d, t_max, t[0], t[1], t[2]).expect("hit");
+        assert_eq!(
+            [h.b1, h.b2].map(f32::to_bits),
+            [scalar.b1, scalar.b2].map(f32::to_bits),
+            "o={o} d={d}: barycentrics of the lane test"
+        );
+    }
     binary
 }
 
 fn bvh_occluded(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> bool {
-    b.bvh().traverse::<true, _>(o, d, t_max, |_, prim, tmax| {
+    let binary = b.bvh().traverse::<true, _>(o, d, t_max, |_, prim, tmax| {
         let t = &tris[prim as usize];
         intersect_triangle(o, d, tmax, t[0], t[1], t[2]).map(|h| h.t)
-    })
+    });
+    let mut ray = Ray::new(o, d);
+    ray.t_max = t_max;
+    assert_eq!(
+        b.scene().occluded(&ray),
+        binary,
+        "o={o} d={d} t_max={t_max}: any-hit of the grouped wide tree"
+    );
+    binary
 }
 
 /// `rays` random rays: origins inside and outside the scene bounds, random directions, a third
@@ -1089,7 +1160,7 @@ fn build_errors_and_empty_scene() {
     let mut nodes = vec![BvhNode::default(); 1];
     assert_eq!(build(&[], &mut nodes, &mut []), Ok(1));
     assert!(nodes[0].bounds().is_empty());
-    let empty = Built::with_nodes(nodes, Vec::new());
+    let empty = Built::with_nodes(nodes, Vec::new(), &[]);
     validate(&[], &empty);
     let mut called = false;
     assert!(!empty
@@ -1107,4 +1178,70 @@ fn build_errors_and_empty_scene() {
     assert!(BvhError::TooDeep
         .to_string()
         .contains(&ember_kernel::bvh::MAX_DEPTH.to_string()));
+}
+
+/// `align_leaves` starts every leaf at a group boundary with the leaf's own triangles in the
+/// same order, pads with its last one, and refuses short buffers and leaves beyond the order;
+/// `gather_leaf_groups` holds each slot's triangle and refuses a wrong group count.
+#[test]
+fn leaves_aligned_to_groups_keep_their_triangles() {
+    let tris = random_soup(3000, 11);
+    let b = Built::new(&tris);
+    let mut leaves = 0;
+    for (w, g) in b.wide.iter().zip(&b.grouped) {
+        for lane in 0..WIDTH {
+            assert_eq!(w.count[lane], g.count[lane]);
+            assert_eq!(w.is_leaf(lane), g.is_leaf(lane));
+            if !w.is_leaf(lane) {
+                assert_eq!(w.child[lane], g.child[lane]);
+                continue;
+            }
+            let count = usize::from(w.count[lane]);
+            if count == 0 {
+                continue;
+            }
+            leaves += 1;
+            let (a, z) = (
+                (w.child[lane] & !WIDE_LEAF) as usize,
+                (g.child[lane] & !WIDE_LEAF) as usize,
+            );
+            assert_eq!(z % GROUP_WIDTH, 0, "leaf at {z}");
+            assert_eq!(b.prim_order[a..a + count], b.grouped_order[z..z + count]);
+            let padded = count.div_ceil(GROUP_WIDTH) * GROUP_WIDTH;
+            assert!(b.grouped_order[z + count..z + padded]
+                .iter()
+                .all(|&p| p == b.prim_order[a + count - 1]));
+        }
+    }
+    assert!(leaves > 3000 / MAX_LEAF_PRIMS, "{leaves} leaves");
+    for (slot, &prim) in b.grouped_order.iter().enumerate() {
+        assert_eq!(
+            b.groups[slot / GROUP_WIDTH].triangle(slot % GROUP_WIDTH),
+            tris[prim as usize]
+        );
+    }
+    let mut nodes = b.wide.clone();
+    let mut short = vec![0u32; b.grouped_order.len() - 1];
+    assert_eq!(
+        align_leaves(&mut nodes, &b.prim_order, &mut short),
+        Err(BvhError::NodeCapacity {
+            needed: b.grouped_order.len(),
+            given: short.len()
+        })
+    );
+    let mut out = vec![0u32; b.grouped_order.len()];
+    assert_eq!(
+        align_leaves(&mut nodes, &b.prim_order[..10], &mut out),
+        Err(BvhError::Malformed)
+    );
+    let mut few = vec![TriangleGroup::default(); b.groups.len() - 1];
+    assert!(matches!(
+        gather_leaf_groups(&b.positions, &b.indices, &b.grouped_order, &mut few),
+        Err(BvhError::NodeCapacity { .. })
+    ));
+    let mut groups = vec![TriangleGroup::default(); b.groups.len()];
+    assert_eq!(
+        gather_leaf_groups(&b.positions, &b.indices[..5], &b.grouped_order, &mut groups),
+        Err(BvhError::Malformed)
+    );
 }

@@ -27,7 +27,7 @@
 use criterion::{BatchSize, BenchmarkId, Criterion, SamplingMode, Throughput};
 use ember_kernel::bvh::{self, Bvh, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
-use ember_kernel::geometry::{Aabb, Ray};
+use ember_kernel::geometry::{Aabb, Ray, TriangleGroup, GROUP_WIDTH};
 use ember_kernel::sampler::mix64;
 use ember_kernel::scene::{Material, SceneView};
 use ember_kernel::{Rgb, Vec2, Vec3};
@@ -105,7 +105,9 @@ struct Scene {
     nodes: Vec<BvhNode>,
     wide: Vec<WideNode>,
     prim_order: Vec<u32>,
-    leaf_triangles: Vec<[Vec3; 3]>,
+    /// The wide tree's order with leaves aligned to groups of four, and its triangle groups.
+    wide_order: Vec<u32>,
+    leaf_groups: Vec<TriangleGroup>,
     build_seconds: f64,
 }
 
@@ -216,9 +218,12 @@ impl Scene {
         let normals = positions.iter().map(|p| p.normalize_or_zero()).collect();
         let start = Instant::now();
         let (nodes, wide, prim_order) = build_bvh(&positions, &triangles);
-        let mut leaf_triangles = vec![[Vec3::ZERO; 3]; prim_order.len()];
-        bvh::gather_leaf_triangles(&positions, &triangles, &prim_order, &mut leaf_triangles)
-            .expect("leaf triangles");
+        let mut wide = wide;
+        let mut wide_order = vec![0u32; bvh::aligned_order_len(&wide)];
+        bvh::align_leaves(&mut wide, &prim_order, &mut wide_order).expect("aligned leaves");
+        let mut leaf_groups = vec![TriangleGroup::default(); wide_order.len() / GROUP_WIDTH];
+        bvh::gather_leaf_groups(&positions, &triangles, &wide_order, &mut leaf_groups)
+            .expect("leaf groups");
         let build_seconds = start.elapsed().as_secs_f64();
         Self {
             name,
@@ -230,7 +235,8 @@ impl Scene {
             nodes,
             wide,
             prim_order,
-            leaf_triangles,
+            wide_order,
+            leaf_groups,
             build_seconds,
         }
     }
@@ -254,8 +260,8 @@ impl Scene {
             } else {
                 WideBvh {
                     nodes: &self.wide,
-                    prim_order: &self.prim_order,
-                    leaf_triangles: &self.leaf_triangles,
+                    prim_order: &self.wide_order,
+                    leaf_groups: &self.leaf_groups,
                 }
                 .into()
             },
@@ -329,7 +335,7 @@ impl Scene {
     }
 
     /// Bytes of the data the renderer keeps and traverses: (wide nodes, triangle indices,
-    /// positions, prim order, leaf-ordered vertices); the binary nodes are dropped after the
+    /// positions, aligned prim order, triangle groups); the binary nodes are dropped after the
     /// collapse.
     fn bytes(&self) -> [usize; 5] {
         use std::mem::size_of_val;
@@ -337,8 +343,8 @@ impl Scene {
             size_of_val(self.wide.as_slice()),
             size_of_val(self.triangles.as_slice()),
             size_of_val(self.positions.as_slice()),
-            size_of_val(self.prim_order.as_slice()),
-            size_of_val(self.leaf_triangles.as_slice()),
+            size_of_val(self.wide_order.as_slice()),
+            size_of_val(self.leaf_groups.as_slice()),
         ]
     }
 }
@@ -360,7 +366,7 @@ fn print_memory(s: &Scene) {
     let [nodes, tris, pos, order, leaf] = s.bytes();
     let n = s.triangles.len() as f64;
     println!(
-        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} 4-wide BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1} + leaf-ordered vertices {:.1}); + normals {:.1} + material ids 4.0 for shading",
+        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} 4-wide BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1} + triangle groups {:.1}); + normals {:.1} + material ids 4.0 for shading",
         s.name,
         s.triangles.len(),
         s.positions.len(),

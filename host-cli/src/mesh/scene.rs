@@ -9,7 +9,7 @@ use super::texture::TextureTable;
 use crate::error::{Error, Result};
 use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy, EmitterTableError};
-use ember_kernel::geometry::Aabb;
+use ember_kernel::geometry::{Aabb, TriangleGroup, GROUP_WIDTH};
 use ember_kernel::material::Reflectance;
 use ember_kernel::scene::{Material, SceneView};
 use ember_kernel::texture::{Texture, Textures};
@@ -38,14 +38,6 @@ pub struct MaterialInfo {
 
 /// The scene's geometry and materials in host-owned buffers; [`SceneData::view`] lends them to
 /// the kernel.
-/// Scenes with at least this many triangles are traced with a leaf-ordered copy of their
-/// vertices ([`WideBvh::leaf_triangles`], 36 bytes per triangle). It pays where the index and
-/// vertex buffers no longer stay in the caches: on `bench/embree`'s rays (one thread, medians
-/// of 3 to 5 runs, AMD EPYC) 1.12–1.38 times the rays/s at 1M triangles and 1.01–1.15 at 100k,
-/// but nothing measurable at 32k (0.84–1.04 by ray set, within the runs' noise; a Cornell box
-/// render 0.94–0.98), where it would only cost memory.
-pub const LEAF_TRIANGLES_FROM: usize = 65_536;
-
 #[derive(Clone, Debug, Default)]
 pub struct SceneData {
     pub positions: Vec<Vec3>,
@@ -61,10 +53,11 @@ pub struct SceneData {
     pub emitter_count: usize,
     /// The four-wide BVH the renderer traces (the binary build is collapsed and dropped).
     pub bvh_nodes: Vec<WideNode>,
+    /// The wide tree's primitive order, each leaf starting at a multiple of four
+    /// ([`bvh::align_leaves`]; padded with repeats of the leaf's last triangle).
     pub bvh_prim_order: Vec<u32>,
-    /// Each triangle's vertices in the BVH's leaf order ([`WideBvh::leaf_triangles`]), for
-    /// scenes of at least [`LEAF_TRIANGLES_FROM`] triangles; empty for smaller ones.
-    pub bvh_leaf_triangles: Vec<[Vec3; 3]>,
+    /// The triangles of `bvh_prim_order` four at a time ([`WideBvh::leaf_groups`]).
+    pub bvh_leaf_groups: Vec<TriangleGroup>,
     /// Non-fatal remarks about the input (unsupported MTL features and the like).
     pub warnings: Vec<String>,
     /// Wall time of the last BVH build.
@@ -390,7 +383,8 @@ impl SceneData {
     }
 
     /// Builds the BVH over all triangles, collapses it to the four-wide tree the renderer
-    /// traces and trims that to the nodes used.
+    /// traces, trims that to the nodes used, and lays its leaves out in groups of four
+    /// triangles for the lane-wise triangle test.
     ///
     /// # Errors
     /// When the kernel's build refuses the input.
@@ -413,15 +407,14 @@ impl SceneData {
         let used = bvh::collapse(&nodes[..used], &mut wide).map_err(|e| e.to_string())?;
         wide.truncate(used);
         wide.shrink_to_fit();
-        let mut leaf = Vec::new();
-        if order.len() >= LEAF_TRIANGLES_FROM {
-            leaf = vec![[Vec3::ZERO; 3]; order.len()];
-            bvh::gather_leaf_triangles(&self.positions, &self.triangles, &order, &mut leaf)
-                .map_err(|e| e.to_string())?;
-        }
+        let mut aligned = vec![0u32; bvh::aligned_order_len(&wide)];
+        bvh::align_leaves(&mut wide, &order, &mut aligned).map_err(|e| e.to_string())?;
+        let mut groups = vec![TriangleGroup::default(); aligned.len().div_ceil(GROUP_WIDTH)];
+        bvh::gather_leaf_groups(&self.positions, &self.triangles, &aligned, &mut groups)
+            .map_err(|e| e.to_string())?;
         self.bvh_nodes = wide;
-        self.bvh_prim_order = order;
-        self.bvh_leaf_triangles = leaf;
+        self.bvh_prim_order = aligned;
+        self.bvh_leaf_groups = groups;
         self.bvh_build_seconds = start.elapsed().as_secs_f64();
         Ok(())
     }
@@ -440,7 +433,7 @@ impl SceneData {
             bvh: WideBvh {
                 nodes: &self.bvh_nodes,
                 prim_order: &self.bvh_prim_order,
-                leaf_triangles: &self.bvh_leaf_triangles,
+                leaf_groups: &self.bvh_leaf_groups,
             }
             .into(),
             textures: Textures {
@@ -464,7 +457,7 @@ impl SceneData {
             + size_of_val(self.emitter_cdf.as_slice())
             + size_of_val(self.bvh_nodes.as_slice())
             + size_of_val(self.bvh_prim_order.as_slice())
-            + size_of_val(self.bvh_leaf_triangles.as_slice())
+            + size_of_val(self.bvh_leaf_groups.as_slice())
             + size_of_val(self.uvs.as_slice())
             + size_of_val(self.textures.as_slice())
             + size_of_val(self.texels.as_slice())
@@ -475,38 +468,39 @@ impl SceneData {
 mod tests {
     use super::*;
 
-    /// The leaf-ordered vertices change no hit: the Cornell box traced with them and through
-    /// the index buffer gives the same closest hits (bit for bit) and occlusion answers on
-    /// rays from inside the room in every direction; and `validate` refuses a copy that is
-    /// short or differs from the triangles.
+    /// The lane-wise triangle groups change no hit: the Cornell box traced with them and
+    /// triangle by triangle through the index buffer gives the same closest hits (bit for
+    /// bit) and occlusion answers on rays from inside the room in every direction; and
+    /// `validate` refuses groups that are too few or differ from the triangles.
     #[test]
-    fn leaf_ordered_vertices_give_the_same_hits_and_are_validated() {
+    fn leaf_groups_give_the_same_hits_and_are_validated() {
         use ember_kernel::geometry::Ray;
         use ember_kernel::scene::SceneError;
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/cornell-box/mesh");
         let data = SceneData::load_obj(&dir.join("cornell_box.obj")).unwrap();
-        // 32 triangles: below LEAF_TRIANGLES_FROM, traced through the index buffer.
-        assert!(data.bvh_leaf_triangles.is_empty());
-        let mut leaf = vec![[Vec3::ZERO; 3]; data.triangles.len()];
-        bvh::gather_leaf_triangles(
-            &data.positions,
-            &data.triangles,
-            &data.bvh_prim_order,
-            &mut leaf,
-        )
-        .unwrap();
-        let without = data.view();
-        let view = |leaf| SceneView {
+        // Every leaf starts a group, and every triangle is in one.
+        assert_eq!(data.bvh_prim_order.len() % GROUP_WIDTH, 0);
+        assert_eq!(
+            data.bvh_leaf_groups.len() * GROUP_WIDTH,
+            data.bvh_prim_order.len()
+        );
+        let mut seen = data.bvh_prim_order.clone();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen, (0..32).collect::<Vec<u32>>());
+        let with = data.view();
+        with.validate().unwrap();
+        let view = |groups| SceneView {
             bvh: WideBvh {
                 nodes: &data.bvh_nodes,
                 prim_order: &data.bvh_prim_order,
-                leaf_triangles: leaf,
+                leaf_groups: groups,
             }
             .into(),
-            ..without
+            ..with
         };
-        let with = view(&leaf);
-        with.validate().unwrap();
+        let leaf = data.bvh_leaf_groups.clone();
+        let without = view(&[]);
         let (lo, hi) = data
             .positions
             .iter()
@@ -532,7 +526,7 @@ mod tests {
         }
         assert!(hits > 3000, "{hits} hits");
         let mut wrong = leaf.clone();
-        wrong[7][1].x += 1e-3;
+        wrong[1].v[2][0][3] += 1e-3;
         assert_eq!(
             view(&wrong).validate(),
             Err(SceneError::BvhLeafTriangle { entry: 7 })
@@ -540,7 +534,9 @@ mod tests {
         let short = &leaf[..5];
         assert_eq!(
             view(short).validate(),
-            Err(SceneError::BvhLeafTriangle { entry: 5 })
+            Err(SceneError::BvhLeafTriangle {
+                entry: data.bvh_prim_order.len()
+            })
         );
     }
 

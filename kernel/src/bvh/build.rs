@@ -1,7 +1,7 @@
 //! Binned surface-area-heuristic build straight into caller slices, no allocation.
 
 use super::BvhNode;
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, GROUP_WIDTH};
 use glam::Vec3;
 
 /// Leaves hold at most this many primitives unless the centroids cannot be separated.
@@ -13,8 +13,17 @@ pub const MAX_DEPTH: usize = 96;
 /// Levels built with the SAH before the build falls back to median splits.
 pub const SAH_DEPTH: u32 = 48;
 const BINS: usize = 16;
-/// Cost of visiting an interior node relative to one primitive test.
+/// Cost of visiting an interior node relative to one test of a group of primitives.
 const TRAVERSAL_COST: f32 = 1.0;
+
+/// The SAH's cost of testing `n` primitives: one lane-wise test per group of
+/// [`GROUP_WIDTH`] (`SceneView`'s leaf test), so a leaf of three or four costs what a leaf of one
+/// does. Counting primitives instead made leaves of one or two triangles, half-empty groups,
+/// and 135 bytes per triangle.
+#[inline]
+fn test_cost(n: u32) -> f32 {
+    n.div_ceil(GROUP_WIDTH as u32) as f32
+}
 
 /// Number of nodes the caller must provide for `prims` primitives (a binary tree with at most
 /// one primitive per leaf has `2n − 1` nodes). Extra capacity is left untouched.
@@ -224,7 +233,7 @@ pub fn build_with<B: Fn(u32) -> Aabb>(
                     None
                 };
                 split
-                    .filter(|s| s.cost < count as f32 || count > MAX_LEAF_PRIMS)
+                    .filter(|s| s.cost < test_cost(count as u32) || count > MAX_LEAF_PRIMS)
                     .and_then(|s| {
                         partition(bounds, prims, &centroid_bounds, s.axis, s.bin)
                             .map(|m| (s.axis, m))
@@ -272,7 +281,7 @@ fn bin_of(c: f32, lo: f32, extent: f32) -> usize {
     b.min(BINS - 1)
 }
 
-/// Best binned-SAH split over all three axes, with the cost in units of primitive tests.
+/// Best binned-SAH split over all three axes, with the cost in units of group tests.
 fn choose_split(
     bounds: &impl Fn(u32) -> Aabb,
     prims: &[u32],
@@ -312,7 +321,8 @@ fn choose_split(
                 continue;
             }
             let cost = TRAVERSAL_COST
-                + (cnt as f32 * acc.surface_area() + rc as f32 * ra) / area.max(f32::MIN_POSITIVE);
+                + (test_cost(cnt) * acc.surface_area() + test_cost(rc) * ra)
+                    / area.max(f32::MIN_POSITIVE);
             if best.as_ref().is_none_or(|b| cost < b.cost) {
                 best = Some(Split { axis, bin: i, cost });
             }

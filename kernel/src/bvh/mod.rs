@@ -17,11 +17,11 @@ pub use build::{
 };
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 pub use wide::{
-    collapse, gather_leaf_triangles, max_wide_nodes, WideBvh, WideNode, SMALL_TREE_NODES,
-    WIDE_LEAF, WIDE_MAX_DEPTH, WIDE_TRAVERSAL_STACK, WIDTH,
+    align_leaves, aligned_order_len, collapse, gather_leaf_groups, max_wide_nodes, WideBvh,
+    WideNode, SMALL_TREE_NODES, WIDE_LEAF, WIDE_MAX_DEPTH, WIDE_TRAVERSAL_STACK, WIDTH,
 };
 
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, TriangleGroup};
 use glam::Vec3;
 
 /// The BVH a scene is traced with: the binary tree as built (32-byte nodes, the layout a GPU
@@ -45,13 +45,13 @@ impl<'a> SceneBvh<'a> {
         }
     }
 
-    /// The wide tree's [`WideBvh::leaf_triangles`] (empty for the binary tree).
+    /// The wide tree's [`WideBvh::leaf_groups`] (empty for the binary tree).
     #[inline]
     #[must_use]
-    pub fn leaf_triangles(&self) -> &'a [[Vec3; 3]] {
+    pub fn leaf_groups(&self) -> &'a [TriangleGroup] {
         match self {
             Self::Binary(_) => &[],
-            Self::Wide(w) => w.leaf_triangles,
+            Self::Wide(w) => w.leaf_groups,
         }
     }
 
@@ -68,6 +68,44 @@ impl<'a> SceneBvh<'a> {
             Self::Binary(b) => b.traverse::<ANY_HIT, F>(o, d, t_max, hit),
             Self::Wide(w) => w.traverse::<ANY_HIT, F>(o, d, t_max, hit),
         }
+    }
+
+    /// [`Bvh::traverse_leaves`] or [`WideBvh::traverse_leaves`].
+    #[inline]
+    pub fn traverse_leaves<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
+        leaf: F,
+    ) -> bool {
+        match self {
+            Self::Binary(b) => b.traverse_leaves::<ANY_HIT, F>(o, d, t_max, leaf),
+            Self::Wide(w) => w.traverse_leaves::<ANY_HIT, F>(o, d, t_max, leaf),
+        }
+    }
+}
+
+/// A leaf callback (`traverse_leaves`) that calls `hit(slot, prim, t_max)` for each of the
+/// leaf's primitives in slot order, shrinking `t_max` after each hit (or, with `ANY_HIT`,
+/// stopping at the first).
+#[inline]
+fn each_primitive<'a, const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32> + 'a>(
+    prim_order: &'a [u32],
+    mut hit: F,
+) -> impl FnMut(u32, u32, f32) -> Option<f32> + 'a {
+    move |first, count, mut t_max| {
+        let mut bound = None;
+        for slot in first..first + count {
+            if let Some(t) = hit(slot, prim_order[slot as usize], t_max) {
+                if ANY_HIT {
+                    return Some(t);
+                }
+                t_max = t_max.min(t);
+                bound = Some(t_max);
+            }
+        }
+        bound
     }
 }
 

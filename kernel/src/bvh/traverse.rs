@@ -16,17 +16,37 @@ pub struct Bvh<'a> {
 
 impl Bvh<'_> {
     /// Visits the leaves that the ray `o + t·d`, `t < t_max`, may hit, nearest child first, and
-    /// calls `hit(slot, prim, t_max)` for each primitive (`slot`: its index in `prim_order`). `hit` returns the distance of a hit closer
-    /// than the `t_max` it was given. With `ANY_HIT`, traversal stops at the first hit
-    /// (shadow rays); otherwise `t_max` shrinks to the closest hit so far.
-    /// Returns whether anything was hit.
+    /// calls `hit(slot, prim, t_max)` for each primitive (`slot`: its index in `prim_order`).
+    /// `hit` returns the distance of a hit closer than the `t_max` it was given. With
+    /// `ANY_HIT`, traversal stops at the first hit (shadow rays); otherwise `t_max` shrinks to
+    /// the closest hit so far. Returns whether anything was hit.
     #[inline]
     pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
         &self,
         o: Vec3,
         d: Vec3,
+        t_max: f32,
+        hit: F,
+    ) -> bool {
+        let order = self.prim_order;
+        self.traverse_leaves::<ANY_HIT, _>(
+            o,
+            d,
+            t_max,
+            super::each_primitive::<ANY_HIT, F>(order, hit),
+        )
+    }
+
+    /// [`Self::traverse`] a leaf at a time: `leaf(first, count, t_max)` is called for the
+    /// leaves with primitives `prim_order[first .. first + count]` and returns the bound after
+    /// its hits closer than `t_max` (or, with `ANY_HIT`, the distance of one), if any.
+    #[inline]
+    pub fn traverse_leaves<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
+        &self,
+        o: Vec3,
+        d: Vec3,
         mut t_max: f32,
-        mut hit: F,
+        mut leaf: F,
     ) -> bool {
         let inv_d = Vec3::ONE / d;
         let neg = [inv_d.x < 0.0, inv_d.y < 0.0, inv_d.z < 0.0];
@@ -41,19 +61,15 @@ impl Bvh<'_> {
             let node = &self.nodes[current];
             if node.bounds().hit(o, inv_d, neg, t_max) {
                 if node.is_leaf() {
-                    let first = node.offset as usize;
-                    let prims = &self.prim_order[first..first + usize::from(node.count)];
-                    for (slot, &prim) in (first as u32..).zip(prims) {
-                        if let Some(t) = hit(slot, prim, t_max) {
-                            any = true;
-                            if ANY_HIT {
-                                return true;
-                            }
-                            // Never farther: a hit test may round a distance just past the
-                            // `t_max` it was given, and a growing `t_max` would make the visit
-                            // depend on when a box is tested.
-                            t_max = t_max.min(t);
+                    if let Some(t) = leaf(node.offset, u32::from(node.count), t_max) {
+                        any = true;
+                        if ANY_HIT {
+                            return true;
                         }
+                        // Never farther: a hit test may round a distance just past the
+                        // `t_max` it was given, and a growing `t_max` would make the visit
+                        // depend on when a box is tested.
+                        t_max = t_max.min(t);
                     }
                 } else {
                     // Near child first: the first child holds the lower half along `axis`.

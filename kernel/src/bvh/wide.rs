@@ -23,6 +23,7 @@
 #![allow(clippy::disallowed_types)]
 
 use super::{BvhError, BvhNode, MAX_DEPTH};
+use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::math::gamma;
 use glam::{Vec3, Vec4};
 
@@ -196,49 +197,121 @@ fn set_lane(node: &mut WideNode, lane: usize, child: &BvhNode, target: u32) {
     node.count[lane] = child.count;
 }
 
-/// A collapsed wide BVH borrowed from caller storage.
-#[derive(Clone, Copy, Debug)]
-pub struct WideBvh<'a> {
-    pub nodes: &'a [WideNode],
-    pub prim_order: &'a [u32],
-    /// The vertices of each triangle in leaf order (`leaf_triangles[slot]` are those of
-    /// triangle `prim_order[slot]`, [`gather_leaf_triangles`]), so that a leaf's triangle tests
-    /// read one contiguous run instead of an index and three vertices each; or empty, and the
-    /// scene reads them through its index buffer.
-    pub leaf_triangles: &'a [[Vec3; 3]],
+/// Length of the primitive order [`align_leaves`] writes for `nodes`: each leaf's primitives
+/// rounded up to whole groups of [`GROUP_WIDTH`].
+#[must_use]
+pub fn aligned_order_len(nodes: &[WideNode]) -> usize {
+    nodes
+        .iter()
+        .flat_map(|n| (0..WIDTH).filter(|&l| n.is_leaf(l)).map(|l| n.count[l]))
+        .map(|c| usize::from(c).div_ceil(GROUP_WIDTH) * GROUP_WIDTH)
+        .sum()
 }
 
-/// Writes the vertices of triangle `prim_order[slot]` to `out[slot]` for every slot (the
-/// [`WideBvh::leaf_triangles`] of a tree over `triangles`).
+/// Lays the leaves of `nodes` out in `aligned` so that each starts at a multiple of
+/// [`GROUP_WIDTH`] (its primitives from `prim_order`, then copies of its last one up to the
+/// next multiple), and points the leaves there; returns the length written
+/// ([`aligned_order_len`]). Leaves come in node order, so the leaves of one node are adjacent.
+///
+/// Why: a leaf then occupies whole [`TriangleGroup`]s ([`gather_leaf_groups`]), and its
+/// triangles are tested by one lane-wise test per four instead of one per group it straddles.
 ///
 /// # Errors
-/// [`BvhError::NodeCapacity`] if `out` is not as long as `prim_order`; [`BvhError::Malformed`]
-/// if `prim_order` names a triangle `triangles` lacks or a triangle a vertex `positions` lacks.
-pub fn gather_leaf_triangles(
+/// [`BvhError::NodeCapacity`] if `aligned` is shorter than [`aligned_order_len`];
+/// [`BvhError::Malformed`] if a leaf names primitives beyond `prim_order`;
+/// [`BvhError::TooManyPrims`] if the aligned order reaches [`WIDE_LEAF`].
+pub fn align_leaves(
+    nodes: &mut [WideNode],
+    prim_order: &[u32],
+    aligned: &mut [u32],
+) -> Result<usize, BvhError> {
+    let needed = aligned_order_len(nodes);
+    if aligned.len() < needed {
+        return Err(BvhError::NodeCapacity {
+            needed,
+            given: aligned.len(),
+        });
+    }
+    if needed >= WIDE_LEAF as usize {
+        return Err(BvhError::TooManyPrims);
+    }
+    let mut next = 0usize;
+    for node in nodes.iter_mut() {
+        for lane in 0..WIDTH {
+            let count = usize::from(node.count[lane]);
+            if !node.is_leaf(lane) || count == 0 {
+                continue;
+            }
+            let first = (node.child[lane] & !WIDE_LEAF) as usize;
+            let prims = prim_order
+                .get(first..first + count)
+                .ok_or(BvhError::Malformed)?;
+            let padded = count.div_ceil(GROUP_WIDTH) * GROUP_WIDTH;
+            let out = &mut aligned[next..next + padded];
+            out[..count].copy_from_slice(prims);
+            out[count..].fill(prims[count - 1]);
+            node.child[lane] = WIDE_LEAF | next as u32;
+            next += padded;
+        }
+    }
+    Ok(next)
+}
+
+/// Writes the vertices of the triangles `prim_order[4g .. 4g + 4]` to `out[g]` (the
+/// [`WideBvh::leaf_groups`] of a tree over `triangles`); lanes past the end of `prim_order`
+/// repeat its last triangle.
+///
+/// # Errors
+/// [`BvhError::NodeCapacity`] if `out` does not hold `prim_order.len()` lanes rounded up to
+/// whole groups; [`BvhError::Malformed`] if `prim_order` names a triangle `triangles` lacks or a
+/// triangle a vertex `positions` lacks.
+pub fn gather_leaf_groups(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     prim_order: &[u32],
-    out: &mut [[Vec3; 3]],
+    out: &mut [TriangleGroup],
 ) -> Result<(), BvhError> {
-    if out.len() != prim_order.len() {
+    let needed = prim_order.len().div_ceil(GROUP_WIDTH);
+    if out.len() != needed {
         return Err(BvhError::NodeCapacity {
-            needed: prim_order.len(),
+            needed,
             given: out.len(),
         });
     }
-    for (o, &prim) in out.iter_mut().zip(prim_order) {
+    let vertices = |prim: u32| -> Result<[Vec3; 3], BvhError> {
         let tri = triangles.get(prim as usize).ok_or(BvhError::Malformed)?;
-        for (v, &i) in o.iter_mut().zip(tri) {
+        let mut v = [Vec3::ZERO; 3];
+        for (v, &i) in v.iter_mut().zip(tri) {
             *v = *positions.get(i as usize).ok_or(BvhError::Malformed)?;
+        }
+        Ok(v)
+    };
+    for (group, prims) in out.iter_mut().zip(prim_order.chunks(GROUP_WIDTH)) {
+        let last = prims[prims.len() - 1];
+        for lane in 0..GROUP_WIDTH {
+            group.set(lane, vertices(*prims.get(lane).unwrap_or(&last))?);
         }
     }
     Ok(())
 }
 
+/// A collapsed wide BVH borrowed from caller storage.
+#[derive(Clone, Copy, Debug)]
+pub struct WideBvh<'a> {
+    pub nodes: &'a [WideNode],
+    pub prim_order: &'a [u32],
+    /// The triangles of `prim_order` in groups of four, structure of arrays (`leaf_groups[g]`
+    /// holds those of slots `4g .. 4g + 4`, [`gather_leaf_groups`]), tested by one lane-wise
+    /// test each; or empty, and the scene tests triangle by triangle through its index buffer.
+    /// With leaves aligned to groups ([`align_leaves`]), a leaf of up to four triangles is one
+    /// group.
+    pub leaf_groups: &'a [TriangleGroup],
+}
+
 impl WideBvh<'_> {
     /// As [`super::Bvh::traverse`], nearest child first: visits the leaves that the ray
     /// `o + t·d`, `t < t_max`, may hit and calls `hit(slot, prim, t_max)` for each primitive
-    /// (`slot`: its index in `prim_order` and [`Self::leaf_triangles`]); `hit`
+    /// (`slot`: its index in `prim_order` and [`Self::leaf_groups`]' lanes); `hit`
     /// returns the distance of a hit closer than the `t_max` it was given. With `ANY_HIT`,
     /// traversal stops at the first hit (shadow rays); otherwise `t_max` shrinks to the
     /// closest hit so far. Returns whether anything was hit.
@@ -250,10 +323,30 @@ impl WideBvh<'_> {
         t_max: f32,
         hit: F,
     ) -> bool {
+        let order = self.prim_order;
+        self.traverse_leaves::<ANY_HIT, _>(
+            o,
+            d,
+            t_max,
+            super::each_primitive::<ANY_HIT, F>(order, hit),
+        )
+    }
+
+    /// [`Self::traverse`] a leaf at a time: `leaf(first, count, t_max)` is called for the
+    /// leaves with primitives `prim_order[first .. first + count]` and returns the bound after
+    /// its hits closer than `t_max` (or, with `ANY_HIT`, the distance of one), if any.
+    #[inline]
+    pub fn traverse_leaves<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
+        leaf: F,
+    ) -> bool {
         if self.nodes.len() <= SMALL_TREE_NODES {
-            self.traverse_with::<ANY_HIT, F, SMALL_TREE_STACK>(o, d, t_max, hit)
+            self.traverse_with::<ANY_HIT, F, SMALL_TREE_STACK>(o, d, t_max, leaf)
         } else {
-            self.traverse_with::<ANY_HIT, F, WIDE_TRAVERSAL_STACK>(o, d, t_max, hit)
+            self.traverse_with::<ANY_HIT, F, WIDE_TRAVERSAL_STACK>(o, d, t_max, leaf)
         }
     }
 
@@ -268,7 +361,7 @@ impl WideBvh<'_> {
         o: Vec3,
         d: Vec3,
         mut t_max: f32,
-        mut hit: F,
+        mut leaf: F,
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
@@ -321,23 +414,19 @@ impl WideBvh<'_> {
                     index = reference as usize;
                     break;
                 }
-                let leaf = (reference & !WIDE_LEAF) as usize;
-                let parent = &self.nodes[leaf / WIDTH];
-                let lane = leaf % WIDTH;
-                let first = (parent.child[lane] & !WIDE_LEAF) as usize;
-                let count = usize::from(parent.count[lane]);
-                let prims = &self.prim_order[first..first + count];
-                for (slot, &prim) in (first as u32..).zip(prims) {
-                    if let Some(t) = hit(slot, prim, t_max) {
-                        any = true;
-                        if ANY_HIT {
-                            return true;
-                        }
-                        // Never farther: a hit test may round a distance just past the
-                        // `t_max` it was given, and a growing `t_max` would make the visit
-                        // depend on when a box is tested.
-                        t_max = t_max.min(t);
+                let at = (reference & !WIDE_LEAF) as usize;
+                let parent = &self.nodes[at / WIDTH];
+                let lane = at % WIDTH;
+                let first = parent.child[lane] & !WIDE_LEAF;
+                if let Some(t) = leaf(first, u32::from(parent.count[lane]), t_max) {
+                    any = true;
+                    if ANY_HIT {
+                        return true;
                     }
+                    // Never farther: a hit test may round a distance just past the `t_max` it
+                    // was given, and a growing `t_max` would make the visit depend on when a
+                    // box is tested.
+                    t_max = t_max.min(t);
                 }
             }
         }

@@ -3,6 +3,7 @@
 mod aabb;
 mod ray;
 mod triangle;
+mod triangle_group;
 
 pub use aabb::Aabb;
 pub use ray::{offset_ray_origin, shadow_ray, spawn_connection, spawn_ray, spawn_ray_to, Ray};
@@ -10,3 +11,4 @@ pub use triangle::{
     inset_barycentrics, intersect_triangle, triangle_point, triangle_point_error, TriangleHit,
     WatertightRay,
 };
+pub use triangle_group::{GroupHits, TriangleGroup, GROUP_WIDTH};

@@ -35,11 +35,11 @@ fn max_dimension(v: Vec3) -> usize {
 /// so a traversal computes them once instead of once per triangle (same values, bit for bit).
 #[derive(Clone, Copy, Debug)]
 pub struct WatertightRay {
-    o: Vec3,
-    k: [usize; 3],
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    pub(super) o: Vec3,
+    pub(super) k: [usize; 3],
+    pub(super) sx: f32,
+    pub(super) sy: f32,
+    pub(super) sz: f32,
 }
 
 impl WatertightRay {

@@ -19,6 +19,7 @@
 use ember_kernel::bvh::{self, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
+use ember_kernel::geometry::{TriangleGroup, GROUP_WIDTH};
 use ember_kernel::integrator::{
     bake_vertex, render_pixel, BakeEstimator, BakePoint, BdptScratch, Integrator, MisHeuristic,
     PathSettings, PixelStats, Shortcuts,
@@ -530,6 +531,9 @@ pub const VERTICES: usize = 4 * QUADS.len();
 pub const TRIANGLES: usize = 2 * QUADS.len();
 pub const BVH_NODES: usize = bvh::max_nodes(TRIANGLES);
 pub const WIDE_NODES: usize = bvh::max_wide_nodes(BVH_NODES);
+/// Room for the wide tree's aligned order: every leaf holds at least one triangle and is
+/// padded to at most a group of four per triangle.
+pub const WIDE_ORDER: usize = GROUP_WIDTH * TRIANGLES;
 
 /// A surface point to bake: position, normal, material and texture coordinates. Key `i` for
 /// point `i`.
@@ -595,9 +599,13 @@ pub struct Scene {
     /// must give the golden hashes).
     pub bvh_nodes: [WideNode; WIDE_NODES],
     pub bvh_node_count: usize,
+    /// The binary build's primitive order (the C API's).
     pub bvh_prim_order: [u32; TRIANGLES],
-    /// The triangles' vertices in leaf order, as the command line traces them.
-    pub bvh_leaf_triangles: [[Vec3; 3]; TRIANGLES],
+    /// The wide tree's order with leaves aligned to groups of four, and its triangle groups, as
+    /// the command line traces them.
+    pub bvh_wide_order: [u32; WIDE_ORDER],
+    pub bvh_wide_order_len: usize,
+    pub bvh_leaf_groups: [TriangleGroup; TRIANGLES],
 }
 
 impl Default for Scene {
@@ -627,7 +635,9 @@ impl Scene {
             bvh_nodes: [WideNode::default(); WIDE_NODES],
             bvh_node_count: 0,
             bvh_prim_order: [0; TRIANGLES],
-            bvh_leaf_triangles: [[Vec3::ZERO; 3]; TRIANGLES],
+            bvh_wide_order: [0; WIDE_ORDER],
+            bvh_wide_order_len: 0,
+            bvh_leaf_groups: [TriangleGroup::default(); TRIANGLES],
         };
         for (q, quad) in QUADS.iter().enumerate() {
             for (c, corner) in quad.corners.iter().enumerate() {
@@ -666,13 +676,20 @@ impl Scene {
         )
         .expect("BVH build");
         s.bvh_node_count = bvh::collapse(&binary[..used], &mut s.bvh_nodes).expect("BVH collapse");
-        bvh::gather_leaf_triangles(
+        s.bvh_wide_order_len = bvh::align_leaves(
+            &mut s.bvh_nodes[..s.bvh_node_count],
+            &s.bvh_prim_order,
+            &mut s.bvh_wide_order,
+        )
+        .expect("aligned leaves");
+        let groups = s.bvh_wide_order_len / GROUP_WIDTH;
+        bvh::gather_leaf_groups(
             &s.positions,
             &s.triangles,
-            &s.bvh_prim_order,
-            &mut s.bvh_leaf_triangles,
+            &s.bvh_wide_order[..s.bvh_wide_order_len],
+            &mut s.bvh_leaf_groups[..groups],
         )
-        .expect("leaf triangles");
+        .expect("leaf groups");
         s
     }
 
@@ -689,8 +706,8 @@ impl Scene {
             emitter_cdf: &self.emitter_cdf[..self.emitter_count],
             bvh: WideBvh {
                 nodes: &self.bvh_nodes[..self.bvh_node_count],
-                prim_order: &self.bvh_prim_order,
-                leaf_triangles: &self.bvh_leaf_triangles,
+                prim_order: &self.bvh_wide_order[..self.bvh_wide_order_len],
+                leaf_groups: &self.bvh_leaf_groups[..self.bvh_wide_order_len / GROUP_WIDTH],
             }
             .into(),
             textures: Textures {

@@ -650,11 +650,11 @@ fn run(args: &Args) -> Res<()> {
             size_of_val(data.bvh_prim_order.as_slice()),
             size_of_val(data.triangles.as_slice()),
             size_of_val(data.positions.as_slice()),
-            size_of_val(data.bvh_leaf_triangles.as_slice()),
+            size_of_val(data.bvh_leaf_groups.as_slice()),
         ];
         let per_tri = |b: usize| b as f64 / n_tris as f64;
         println!(
-            "{scene}: {n_tris} triangles, {} vertices, {} nodes; build {:.1} ms (min of 3, median {:.1}); kernel bytes/triangle {:.1} = nodes {:.1} + prim order {:.1} + triangles {:.1} + positions {:.1} + leaf-ordered vertices {:.1}",
+            "{scene}: {n_tris} triangles, {} vertices, {} nodes; build {:.1} ms (min of 3, median {:.1}); kernel bytes/triangle {:.1} = nodes {:.1} + prim order {:.1} + triangles {:.1} + positions {:.1} + triangle groups {:.1}",
             data.positions.len(),
             data.bvh_nodes.len(),
             builds.iter().copied().fold(f64::MAX, f64::min) * 1e3,
@@ -668,7 +668,7 @@ fn run(args: &Args) -> Res<()> {
         );
         writeln!(
             json,
-            "{{\"kind\": \"build\", \"scene\": \"{scene}\", \"triangles\": {n_tris}, \"vertices\": {}, \"nodes\": {}, \"build_s\": {}, \"bytes_nodes\": {}, \"bytes_prim_order\": {}, \"bytes_triangles\": {}, \"bytes_positions\": {}, \"bytes_leaf_triangles\": {}}}",
+            "{{\"kind\": \"build\", \"scene\": \"{scene}\", \"triangles\": {n_tris}, \"vertices\": {}, \"nodes\": {}, \"build_s\": {}, \"bytes_nodes\": {}, \"bytes_prim_order\": {}, \"bytes_triangles\": {}, \"bytes_positions\": {}, \"bytes_leaf_groups\": {}}}",
             data.positions.len(),
             data.bvh_nodes.len(),
             list(&builds),
