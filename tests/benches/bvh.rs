@@ -16,7 +16,9 @@
 //!
 //! Build time includes the triangle bounds, the node and index arrays and the four-wide
 //! collapse, as `ember` builds. Ray sets are traced through the four-wide tree the renderer uses
-//! (`wide/...`) and through the binary tree as built (`binary/...`).
+//! with its leaves' triangles tested four at a time in SIMD lanes (`wide/...`), through the same
+//! tree testing one triangle at a time through the index buffer (`wide-scalar/...`: what the
+//! lane test buys), and through the binary tree as built (`binary/...`).
 //! Before the benchmarks the kernel scene memory per triangle is printed, and after them (under
 //! `cargo bench`) a summary of Mrays/s per scene with the ratio to the 1k scene.
 //!
@@ -241,8 +243,9 @@ impl Scene {
         }
     }
 
-    /// The view the renderer traces: the four-wide tree, or with `binary` the tree as built.
-    fn view(&self, binary: bool) -> SceneView<'_> {
+    /// The view of `layout`: the four-wide tree with or without its triangle groups, or the
+    /// binary tree as built.
+    fn view(&self, layout: Layout) -> SceneView<'_> {
         SceneView {
             positions: &self.positions,
             normals: &self.normals,
@@ -251,19 +254,22 @@ impl Scene {
             materials: &self.materials,
             emitter_triangles: &[],
             emitter_cdf: &[],
-            bvh: if binary {
-                Bvh {
+            bvh: match layout {
+                Layout::Binary => Bvh {
                     nodes: &self.nodes,
                     prim_order: &self.prim_order,
                 }
-                .into()
-            } else {
-                WideBvh {
+                .into(),
+                Layout::Wide | Layout::WideScalar => WideBvh {
                     nodes: &self.wide,
                     prim_order: &self.wide_order,
-                    leaf_groups: &self.leaf_groups,
+                    leaf_groups: if layout == Layout::Wide {
+                        &self.leaf_groups
+                    } else {
+                        &[]
+                    },
                 }
-                .into()
+                .into(),
             },
             textures: ember_kernel::texture::Textures::NONE,
         }
@@ -434,6 +440,23 @@ fn bench_build(c: &mut Criterion) {
     g.finish();
 }
 
+/// How a scene's BVH is traced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Layout {
+    /// The four-wide tree with its triangle groups (the renderer's).
+    Wide,
+    /// The four-wide tree, one triangle test at a time.
+    WideScalar,
+    /// The binary tree as built.
+    Binary,
+}
+
+const LAYOUTS: [(&str, Layout); 3] = [
+    ("wide", Layout::Wide),
+    ("wide-scalar", Layout::WideScalar),
+    ("binary", Layout::Binary),
+];
+
 fn bench_rays(c: &mut Criterion) {
     for (set, make, shadow) in RAY_SETS {
         let mut g = c.benchmark_group(set);
@@ -444,10 +467,10 @@ fn bench_rays(c: &mut Criterion) {
             .measurement_time(Duration::from_secs(3))
             .throughput(Throughput::Elements(RAYS as u64));
         for (i, (name, _)) in SCENES.iter().enumerate() {
-            for (layout, binary) in [("wide", false), ("binary", true)] {
-                g.bench_function(BenchmarkId::new(layout, name), |b| {
+            for (label, layout) in LAYOUTS {
+                g.bench_function(BenchmarkId::new(label, name), |b| {
                     let s = scene(i);
-                    let view = s.view(binary);
+                    let view = s.view(layout);
                     let rays = make(s);
                     assert_eq!(rays.len(), RAYS);
                     if shadow {
@@ -470,14 +493,13 @@ fn summary() {
         return;
     }
     println!("\nsummary (one thread, best of 5 passes of {RAYS} rays; ratio to the first scene):");
-    for ((set, make, shadow), (layout, binary)) in RAY_SETS
-        .into_iter()
-        .flat_map(|r| [(r, ("wide", false)), (r, ("binary", true))])
+    for ((set, make, shadow), (label, layout)) in
+        RAY_SETS.into_iter().flat_map(|r| LAYOUTS.map(|l| (r, l)))
     {
         let mut first = None;
-        let mut line = format!("{:<29}", format!("{set} {layout}"));
+        let mut line = format!("{:<29}", format!("{set} {label}"));
         for s in &generated {
-            let view = s.view(binary);
+            let view = s.view(layout);
             let rays = make(s);
             let best = (0..5)
                 .map(|_| {
