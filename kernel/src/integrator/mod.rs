@@ -309,15 +309,31 @@ pub fn render_sample<K: BdptSink>(
     match sampling.kind {
         SamplerKind::Independent => {
             let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
-            let sampler = IndependentSampler::new(sampling.seed, pixel, index);
+            let mut sampler = IndependentSampler::new(sampling.seed, pixel, index);
             sample_with(
-                integrator, scene, camera, settings, x, y, scratch, sink, sampler,
+                integrator,
+                scene,
+                camera,
+                settings,
+                x,
+                y,
+                scratch,
+                sink,
+                &mut sampler,
             )
         }
         SamplerKind::ZSobol => {
-            let sampler = sampling.zsobol().start_pixel_sample(x, y, index, 0);
+            let mut sampler = sampling.zsobol().start_pixel_sample(x, y, index, 0);
             sample_with(
-                integrator, scene, camera, settings, x, y, scratch, sink, sampler,
+                integrator,
+                scene,
+                camera,
+                settings,
+                x,
+                y,
+                scratch,
+                sink,
+                &mut sampler,
             )
         }
     }
@@ -335,37 +351,28 @@ fn sample_with<S: Sampler, K: BdptSink>(
     y: u32,
     scratch: Option<&mut BdptScratch>,
     sink: &mut K,
-    mut sampler: S,
+    sampler: &mut S,
 ) -> SampleResult {
     let mut rays = 0u32;
     let l = match integrator {
         Integrator::LightTracing => {
-            light_trace(scene, camera, settings, &mut sampler, sink, &mut rays);
+            light_trace(scene, camera, settings, sampler, sink, &mut rays);
             Rgb::ZERO
         }
         Integrator::Bdpt(heuristic) => {
             let Some(scratch) = scratch else {
                 return SampleResult::default();
             };
-            let u = dims::camera(&mut sampler);
+            let u = dims::camera(sampler);
             let ray = camera.generate_ray(x, y, u);
             let raster = Vec2::new(x as f32 + u.x, y as f32 + u.y);
             li_bdpt(
-                scene,
-                camera,
-                &ray,
-                raster,
-                settings,
-                heuristic,
-                scratch,
-                &mut sampler,
-                sink,
-                &mut rays,
+                scene, camera, &ray, raster, settings, heuristic, scratch, sampler, sink, &mut rays,
             )
         }
         _ => {
-            let ray = camera.generate_ray(x, y, dims::camera(&mut sampler));
-            li(integrator, scene, &ray, settings, &mut sampler, &mut rays)
+            let ray = camera.generate_ray(x, y, dims::camera(sampler));
+            li(integrator, scene, &ray, settings, sampler, &mut rays)
         }
     };
     SampleResult { l, rays }
@@ -420,21 +427,49 @@ pub fn render_pixel<K: BdptSink>(
     mut scratch: Option<&mut BdptScratch>,
     sink: &mut K,
 ) -> PixelStats {
-    for i in first..first + count {
-        let r = render_sample(
-            integrator,
-            scene,
-            camera,
-            settings,
-            sampling,
-            x,
-            y,
-            i,
-            scratch.as_deref_mut(),
-            sink,
-        );
+    let mut add = |r: SampleResult| {
         stats.add(r.l);
         stats.rays += u64::from(r.rays);
+    };
+    match sampling.kind {
+        SamplerKind::Independent => {
+            for i in first..first + count {
+                let r = render_sample(
+                    integrator,
+                    scene,
+                    camera,
+                    settings,
+                    sampling,
+                    x,
+                    y,
+                    i,
+                    scratch.as_deref_mut(),
+                    sink,
+                );
+                add(r);
+            }
+        }
+        // One sampler for the pixel, restarted per sample: it keeps the per-pixel part of the
+        // Sobol' indices ([`crate::sampler::ZSobolPixelSampler`]); the values are
+        // `render_sample`'s.
+        SamplerKind::ZSobol => {
+            let mut sampler = sampling.zsobol().pixel_sampler(x, y);
+            for i in first..first + count {
+                sampler.start_sample(i, 0);
+                let r = sample_with(
+                    integrator,
+                    scene,
+                    camera,
+                    settings,
+                    x,
+                    y,
+                    scratch.as_deref_mut(),
+                    sink,
+                    &mut sampler,
+                );
+                add(r);
+            }
+        }
     }
     stats
 }

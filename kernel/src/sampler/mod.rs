@@ -9,7 +9,9 @@
 use glam::Vec2;
 
 mod zsobol;
-pub use zsobol::{morton2, owen_scramble, sobol_u32, ZSobolLayout, ZSobolSampler};
+pub use zsobol::{
+    morton2, owen_scramble, sobol_u32, ZSobolLayout, ZSobolPixelSampler, ZSobolSampler, MEMO_SLOTS,
+};
 
 /// Which sequence a render's samples come from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

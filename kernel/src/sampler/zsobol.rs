@@ -210,7 +210,7 @@ impl ZSobolLayout {
         );
         ZSobolSampler {
             layout: *self,
-            morton_index: (morton2(x, y) << self.log2_spp) | u64::from(index),
+            morton_index: self.morton_index(x, y, index),
             dimension,
         }
     }
@@ -224,44 +224,116 @@ pub struct ZSobolSampler {
     dimension: u32,
 }
 
-impl ZSobolSampler {
-    /// The index into the Sobol' sequence for the current dimension: the Morton index with its
-    /// base-4 digits permuted, each by a permutation chosen by the digits above it, the
-    /// dimension and the seed (pbrt-v4's `GetSampleIndex`). An odd `log2 spp` leaves one
-    /// base-2 digit at the bottom, flipped by a hash of the same kind.
-    #[inline]
-    fn sample_index(&self) -> u64 {
-        let odd = self.layout.log2_spp & 1;
-        let key = self.dimension_hash();
-        let mut index = 0u64;
-        let mut i = self.layout.base4_digits;
-        while i > odd {
-            i -= 1;
-            let shift = 2 * i - odd;
-            let digit = (self.morton_index >> shift) & 3;
-            let p = permutation_of(self.morton_index >> (shift + 2), key);
-            index |= u64::from(PERMUTATIONS[p][digit as usize]) << shift;
-        }
-        if odd == 1 {
-            let flip = permutation_hash(self.morton_index >> 1, key) >> 63;
-            index |= (self.morton_index & 1) ^ flip;
-        }
-        index
-    }
-
+impl ZSobolLayout {
     /// A hash of (seed, dimension): the scrambling seeds of dimensions `dimension` and
     /// `dimension + 1` are its halves, and it is the digit permutations' key (mixed with each
     /// digit's higher digits by [`permutation_hash`]).
     #[inline]
-    fn dimension_hash(&self) -> u64 {
-        mix64(self.layout.seed ^ u64::from(self.dimension).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+    fn dimension_key(&self, dimension: u32) -> u64 {
+        mix64(self.seed ^ u64::from(dimension).wrapping_mul(0x9E37_79B9_7F4A_7C15))
     }
 
+    /// Base-4 digits of the Morton index that hold sample-index bits (the bottom
+    /// `log2 spp` bits, less the odd base-2 digit); the digits above them hold pixel bits only.
+    #[inline]
+    const fn sample_base4_digits(&self) -> u32 {
+        self.log2_spp.div_ceil(2)
+    }
+
+    /// Permutes the base-4 digits of `morton_index` numbered `from..to` (digit `i` covers bits
+    /// `2i − odd` and the one above), each by a permutation chosen by the digits above it and
+    /// `key` (pbrt-v4's `GetSampleIndex`, one range of its loop).
+    #[inline]
+    fn permuted_digits(&self, morton_index: u64, key: u64, from: u32, to: u32) -> u64 {
+        let odd = self.log2_spp & 1;
+        let mut index = 0u64;
+        let mut i = to;
+        while i > from {
+            i -= 1;
+            let shift = 2 * i - odd;
+            let digit = (morton_index >> shift) & 3;
+            let p = permutation_of(morton_index >> (shift + 2), key);
+            index |= u64::from(PERMUTATIONS[p][digit as usize]) << shift;
+        }
+        index
+    }
+
+    /// The permuted digits above the sample index's: a function of the pixel and the
+    /// dimension only, the same for every sample of a pixel ([`ZSobolPixelSampler`] keeps them).
+    #[inline]
+    fn pixel_part(&self, morton_index: u64, key: u64) -> u64 {
+        let from = self.sample_base4_digits();
+        self.permuted_digits(morton_index, key, from, self.base4_digits)
+    }
+
+    /// The permuted digits of the sample index, and the odd base-2 digit at the bottom
+    /// when `log2 spp` is odd, flipped by a hash of the same kind.
+    #[inline]
+    fn sample_part(&self, morton_index: u64, key: u64) -> u64 {
+        let odd = self.log2_spp & 1;
+        let to = self.sample_base4_digits();
+        let mut index = self.permuted_digits(morton_index, key, odd, to);
+        if odd == 1 {
+            let flip = permutation_hash(morton_index >> 1, key) >> 63;
+            index |= (morton_index & 1) ^ flip;
+        }
+        index
+    }
+
+    /// The index into the Sobol' sequence for `dimension`: the Morton index with its base-4
+    /// digits permuted, each by a permutation chosen by the digits above it, the dimension and
+    /// the seed (pbrt-v4's `GetSampleIndex`). An odd `log2 spp` leaves one base-2 digit at the
+    /// bottom, flipped by a hash of the same kind.
+    #[inline]
+    fn sample_index(&self, morton_index: u64, key: u64) -> u64 {
+        self.pixel_part(morton_index, key) | self.sample_part(morton_index, key)
+    }
+
+    /// The Morton index of sample `index` of pixel `(x, y)`.
+    #[inline]
+    fn morton_index(&self, x: u32, y: u32, index: u32) -> u64 {
+        (morton2(x, y) << self.log2_spp) | u64::from(index)
+    }
+
+    /// The sampler of pixel `(x, y)`, for its samples one after another
+    /// ([`ZSobolPixelSampler::start_sample`]); the same values as [`Self::start_pixel_sample`],
+    /// with the per-pixel part of each dimension's index computed once per pixel.
+    #[must_use]
+    pub fn pixel_sampler(&self, x: u32, y: u32) -> ZSobolPixelSampler {
+        ZSobolPixelSampler {
+            layout: *self,
+            morton_index: self.morton_index(x, y, 0),
+            dimension: 0,
+            tags: [u32::MAX; MEMO_SLOTS],
+            keys: [0; MEMO_SLOTS],
+            pixel_parts: [0; MEMO_SLOTS],
+        }
+    }
+}
+
+/// Draws `N` consecutive dimensions from `dimension` on, given the index into the sequence and
+/// the dimension key: the scrambled Sobol' points of Sobol' dimensions `0..N`.
+#[inline]
+fn draw<const N: usize>(index: u64, key: u64) -> [f32; N] {
+    let seeds = [key as u32, (key >> 32) as u32];
+    core::array::from_fn(|k| to_unit(owen_scramble(sobol_u32(index, k), seeds[k])))
+}
+
+impl ZSobolSampler {
     /// The current dimension.
     #[inline]
     #[must_use]
     pub fn dimension(&self) -> u32 {
         self.dimension
+    }
+
+    /// The next `N` (1 or 2) dimensions.
+    #[inline]
+    fn next<const N: usize>(&mut self) -> [f32; N] {
+        let key = self.layout.dimension_key(self.dimension);
+        let index = self.layout.sample_index(self.morton_index, key);
+        self.dimension = self.dimension.wrapping_add(N as u32);
+        draw(index, key)
     }
 }
 
@@ -274,23 +346,99 @@ fn to_unit(v: u32) -> f32 {
 impl Sampler for ZSobolSampler {
     #[inline]
     fn next_1d(&mut self) -> f32 {
-        let index = self.sample_index();
-        let seed = self.dimension_hash() as u32;
-        self.dimension = self.dimension.wrapping_add(1);
-        to_unit(owen_scramble(sobol_u32(index, 0), seed))
+        let [u] = self.next::<1>();
+        u
     }
 
     #[inline]
     fn next_2d(&mut self) -> Vec2 {
-        let index = self.sample_index();
-        let h = self.dimension_hash();
-        let (s0, s1) = (h as u32, (h >> 32) as u32);
-        self.dimension = self.dimension.wrapping_add(2);
-        Vec2::new(
-            to_unit(owen_scramble(sobol_u32(index, 0), s0)),
-            to_unit(owen_scramble(sobol_u32(index, 1), s1)),
-        )
+        Vec2::from_array(self.next::<2>())
     }
+
+    #[inline]
+    fn set_dimension(&mut self, d: u32) {
+        self.dimension = d;
+    }
+}
+
+/// Dimensions whose key and per-pixel index part a [`ZSobolPixelSampler`] remembers: slot
+/// `dimension % MEMO_SLOTS` (direct-mapped, so BDPT's light-subpath dimensions far above the
+/// camera subpath's are kept too, at the cost of an occasional eviction). A path tracer's
+/// sample uses 2 + 7 per bounce.
+pub const MEMO_SLOTS: usize = 64;
+
+/// The samples of one pixel, one sample after another (pbrt-v4's `StartPixelSample` on a
+/// sampler kept for the pixel): the values of [`ZSobolLayout::start_pixel_sample`], bit for
+/// bit, but each dimension's key and the permuted digits above the sample index, which depend
+/// only on the pixel and the dimension, are computed once per pixel instead of once per
+/// sample (the digits of a 320 × 240 film at 32 spp are nine of twelve). On TinyRender's
+/// Cornell box (MIS), that takes the sampler's instructions beyond independent sampling's from
+/// 520 M to 457 M at 2 samples per call (32 spp in 16 passes) and to 343 M at 32 per call.
+#[derive(Clone, Debug)]
+pub struct ZSobolPixelSampler {
+    layout: ZSobolLayout,
+    morton_index: u64,
+    dimension: u32,
+    /// The dimension each slot holds (`u32::MAX`: none).
+    tags: [u32; MEMO_SLOTS],
+    keys: [u64; MEMO_SLOTS],
+    pixel_parts: [u64; MEMO_SLOTS],
+}
+
+impl ZSobolPixelSampler {
+    /// Starts sample `index` of the pixel at dimension `dimension`. `index` must be below the
+    /// layout's [`ZSobolLayout::capacity`].
+    #[inline]
+    pub fn start_sample(&mut self, index: u32, dimension: u32) {
+        debug_assert!(
+            index < self.layout.capacity(),
+            "ZSobol sample index past the layout"
+        );
+        let pixel_bits = !0u64 << self.layout.log2_spp;
+        self.morton_index = (self.morton_index & pixel_bits) | u64::from(index);
+        self.dimension = dimension;
+    }
+
+    /// The current dimension.
+    #[inline]
+    #[must_use]
+    pub fn dimension(&self) -> u32 {
+        self.dimension
+    }
+
+    /// The next `N` (1 or 2) dimensions.
+    #[inline]
+    fn next<const N: usize>(&mut self) -> [f32; N] {
+        let d = self.dimension;
+        let slot = d as usize % MEMO_SLOTS;
+        let (key, pixel_part) = if self.tags[slot] == d {
+            (self.keys[slot], self.pixel_parts[slot])
+        } else {
+            let key = self.layout.dimension_key(d);
+            let part = self.layout.pixel_part(self.morton_index, key);
+            self.tags[slot] = d;
+            self.keys[slot] = key;
+            self.pixel_parts[slot] = part;
+            (key, part)
+        };
+        let index = pixel_part | self.layout.sample_part(self.morton_index, key);
+        self.dimension = d.wrapping_add(N as u32);
+        draw(index, key)
+    }
+}
+
+impl Sampler for ZSobolPixelSampler {
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        let [u] = self.next::<1>();
+        u
+    }
+
+    #[inline]
+    fn next_2d(&mut self) -> Vec2 {
+        Vec2::from_array(self.next::<2>())
+    }
+
     #[inline]
     fn set_dimension(&mut self, d: u32) {
         self.dimension = d;
@@ -416,6 +564,57 @@ mod tests {
                             cells[(u >> (24 - m)) as usize] += 1;
                         }
                         assert!(cells.iter().all(|&c| c == 1), "1D, m {m}, dim {dim}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_pixel_sampler_draws_what_start_pixel_sample_draws() {
+        // Every sample of a pixel through one restarted ZSobolPixelSampler against a fresh
+        // ZSobolSampler per sample, bit for bit: even and odd log2 spp (the odd base-2 digit),
+        // 1 spp (no sample digits), films whose Morton codes reach the top digit, 1D and 2D
+        // draws in a per-sample pattern, and jumps to dimensions that share a memo slot
+        // (d and d + MEMO_SLOTS) or lie far beyond it, so that slots are evicted and refilled.
+        let jumps = [0u32, 5, 63, 64, 127, 3, 64 * 7 + 5, 1001, 5, 2];
+        for (spp, w, h) in [
+            (1, 1, 1),
+            (2, 3, 5),
+            (8, 64, 48),
+            (32, 320, 240),
+            (512, 17, 9),
+        ] {
+            for seed in [0u64, 0xC0FFEE] {
+                let layout = ZSobolLayout::new(seed, spp, w, h);
+                for (x, y) in [(0, 0), (w / 2, h / 3), (w - 1, h - 1)] {
+                    let mut memo = layout.pixel_sampler(x, y);
+                    for i in 0..spp {
+                        let start = jumps[i as usize % jumps.len()];
+                        let mut fresh = layout.start_pixel_sample(x, y, i, start);
+                        memo.start_sample(i, start);
+                        for k in 0..40u32 {
+                            if k == 17 {
+                                let d = jumps[(i + k) as usize % jumps.len()];
+                                fresh.set_dimension(d);
+                                memo.set_dimension(d);
+                            }
+                            if (k + i) % 3 == 0 {
+                                let (a, b) = (fresh.next_1d(), memo.next_1d());
+                                assert_eq!(
+                                    a.to_bits(),
+                                    b.to_bits(),
+                                    "spp {spp} ({x}, {y}) i {i} k {k}"
+                                );
+                            } else {
+                                let (a, b) = (fresh.next_2d(), memo.next_2d());
+                                assert_eq!(
+                                    a.to_array().map(f32::to_bits),
+                                    b.to_array().map(f32::to_bits)
+                                );
+                            }
+                            assert_eq!(fresh.dimension(), memo.dimension());
+                        }
                     }
                 }
             }
