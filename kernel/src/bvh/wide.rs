@@ -396,7 +396,9 @@ impl WideBvh<'_> {
                 };
                 let entry = (reference, entry_t);
                 let mut at = sp;
-                while at > base && stack[at - 1].1 < entry.1 {
+                // An any-hit query visits every box on the segment unless it stops, and
+                // its bound never shrinks: the order buys nothing, so it is not sorted.
+                while !ANY_HIT && at > base && stack[at - 1].1 < entry.1 {
                     stack[at] = stack[at - 1];
                     at -= 1;
                 }
@@ -411,7 +413,8 @@ impl WideBvh<'_> {
                 }
                 sp -= 1;
                 let (reference, entry) = stack[sp];
-                if entry >= t_max {
+                // (Never true for an any-hit query: its bound does not shrink.)
+                if !ANY_HIT && entry >= t_max {
                     continue;
                 }
                 if reference & WIDE_LEAF == 0 {
