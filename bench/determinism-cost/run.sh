@@ -12,7 +12,8 @@
 # The cost of the no-FMA rule is fma against native; of the baseline target, native against
 # det. glam's SIMD types (Vec3A, Vec4 dot products) would need source changes and are not
 # measured here. Prints the CPU model and its SIMD flags, and whether each image is
-# bit-identical to det's (with `ember compare` against it when not).
+# bit-identical to det's (with `ember compare` against it when not). Writes the table to
+# bench/determinism-cost/table.md as well.
 # Usage: bench/determinism-cost/run.sh [RUNS]
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
@@ -23,7 +24,11 @@ base="${CARGO_TARGET_DIR:-$HOME/.cache/ember-target}"
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
 
+exec > >(tee "$HERE/table.md")
+echo "# The determinism rules' cost ($(date -u '+%Y-%m-%d %H:%M') UTC, $RUNS alternating runs, medians; 320x240, $(nproc) threads)"
+echo
 echo "CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //'), $(nproc) threads"
+echo
 echo "SIMD: $(grep -m1 '^flags' /proc/cpuinfo | tr ' ' '\n' | grep -xE 'sse4_2|avx|avx2|fma|avx512f|avx512dq|avx512bw|avx512vl|neon' | tr '\n' ' ')"
 
 declare -A flags=(

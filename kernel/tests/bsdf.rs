@@ -1822,3 +1822,48 @@ fn surface_bsdf_sample_agrees_with_eval_and_pdf() {
         assert!(count > 20_000, "{name}: only {count} samples");
     }
 }
+
+#[test]
+fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
+    // Phong's eval_pdf (and its sample) compute the lobe's power once for the value and the
+    // density: both must stay exactly what eval and pdf give, for every configuration, a
+    // diffuse-only and a zero-exponent Phong, and directions on both sides of the surface.
+    let mut bsdfs = configurations();
+    bsdfs.push((
+        "Phong Kd=.5 Ks=0 Ns=30 (no glossy lobe)".into(),
+        Bsdf::Phong(Phong::new(Vec3::splat(0.5), Vec3::ZERO, 30.0)),
+    ));
+    bsdfs.push((
+        "Mixture Kd=.2 Ks=.7 Ns=0".into(),
+        Bsdf::Mixture(Phong::new(Vec3::splat(0.2), Vec3::splat(0.7), 0.0)),
+    ));
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    let mut lobe_hits = 0u32;
+    for (name, bsdf) in &bsdfs {
+        for i in 0..4000u64 {
+            let wo = warp::sample_uniform_sphere(uniform(7, i));
+            let wi = warp::sample_uniform_sphere(uniform(8, i));
+            let (f, pdf) = bsdf.eval_pdf(wo, wi, MODE);
+            assert_eq!(
+                bits(f),
+                bits(bsdf.eval(wo, wi, MODE)),
+                "{name}: f, {wo} {wi}"
+            );
+            assert_eq!(
+                pdf.0.to_bits(),
+                bsdf.pdf(wo, wi, MODE).0.to_bits(),
+                "{name}: pdf, {wo} {wi}"
+            );
+            if let Some(s) = bsdf.sample(wo, lobe(9, i), uniform(9, i), MODE) {
+                assert_eq!(
+                    bits(s.f),
+                    bits(bsdf.eval(wo, s.wi, MODE)),
+                    "{name}: sampled f"
+                );
+                assert_eq!(s.pdf.0.to_bits(), bsdf.pdf(wo, s.wi, MODE).0.to_bits());
+                lobe_hits += u32::from(phong_exponent(bsdf).is_some());
+            }
+        }
+    }
+    assert!(lobe_hits > 10_000, "too few Phong samples: {lobe_hits}");
+}

@@ -174,6 +174,17 @@ impl Bsdf {
         valid.then_some(s)
     }
 
+    /// [`Self::eval`] and [`Self::pdf`] together, bit for bit theirs; Phong computes its
+    /// lobe's power once for both.
+    #[inline]
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> (Rgb, SolidAnglePdf) {
+        match self {
+            Self::Phong(b) | Self::Mixture(b) => b.eval_pdf(wo, wi, mode),
+            _ => (self.eval(wo, wi, mode), self.pdf(wo, wi, mode)),
+        }
+    }
+
     #[inline]
     #[must_use]
     pub fn pdf(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> SolidAnglePdf {

@@ -64,12 +64,55 @@ impl Phong {
             return Rgb::ZERO;
         }
         let cos_alpha = reflect_local(wo).dot(wi);
+        self.eval_with(cos_alpha, self.lobe_power(cos_alpha))
+    }
+
+    /// [`Self::eval`] and [`Self::pdf`] with one `powf` for both (the value each would
+    /// compute: the same function of the same `cos α`, so the results are theirs bit for bit).
+    #[inline]
+    #[must_use]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3, _mode: TransportMode) -> (Rgb, SolidAnglePdf) {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return (Rgb::ZERO, SolidAnglePdf(0.0));
+        }
+        let cos_alpha = reflect_local(wo).dot(wi);
+        let power = self.lobe_power(cos_alpha);
+        (
+            self.eval_with(cos_alpha, power),
+            self.pdf_with(wi, cos_alpha, power),
+        )
+    }
+
+    /// `max(0, cos α)ⁿ`, 0 where `cos α ≤ 0`.
+    #[inline]
+    fn lobe_power(&self, cos_alpha: f32) -> f32 {
+        if cos_alpha > 0.0 {
+            libm::powf(cos_alpha, self.exponent)
+        } else {
+            0.0
+        }
+    }
+
+    /// The BSDF value for `wo`, `wi` above the surface, given `cos α` and its power.
+    #[inline]
+    fn eval_with(&self, cos_alpha: f32, power: f32) -> Rgb {
         let mut f = self.kd * INV_PI;
         if cos_alpha > 0.0 {
-            let lobe = (self.exponent + 2.0) * INV_2PI * libm::powf(cos_alpha, self.exponent);
+            let lobe = (self.exponent + 2.0) * INV_2PI * power;
             f += self.ks * lobe;
         }
         f * self.scale
+    }
+
+    /// The mixture pdf for `wi` above the surface, given `cos α` and its power.
+    #[inline]
+    fn pdf_with(&self, wi: Vec3, cos_alpha: f32, power: f32) -> SolidAnglePdf {
+        let ws = self.specular_weight;
+        let mut pdf = (1.0 - ws) * wi.z * INV_PI;
+        if ws > 0.0 {
+            pdf += ws * warp::phong_lobe_pdf_of_power(cos_alpha, power, self.exponent);
+        }
+        SolidAnglePdf(pdf)
     }
 
     #[inline]
@@ -92,10 +135,11 @@ impl Phong {
         if wi.z <= 0.0 {
             return None;
         }
+        let (f, pdf) = self.eval_pdf(wo, wi, mode);
         Some(BsdfSample {
             wi,
-            f: self.eval(wo, wi, mode),
-            pdf: self.pdf(wo, wi, mode),
+            f,
+            pdf,
             flags,
             eta: 1.0,
         })
@@ -107,13 +151,12 @@ impl Phong {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return SolidAnglePdf(0.0);
         }
-        let ws = self.specular_weight;
-        let mut pdf = (1.0 - ws) * wi.z * INV_PI;
-        if ws > 0.0 {
-            let cos_alpha = reflect_local(wo).dot(wi);
-            pdf += ws * warp::phong_lobe_pdf(cos_alpha, self.exponent);
+        if self.specular_weight <= 0.0 {
+            // The cosine lobe alone: no power needed.
+            return self.pdf_with(wi, 0.0, 0.0);
         }
-        SolidAnglePdf(pdf)
+        let cos_alpha = reflect_local(wo).dot(wi);
+        self.pdf_with(wi, cos_alpha, self.lobe_power(cos_alpha))
     }
 
     #[inline]

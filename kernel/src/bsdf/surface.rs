@@ -176,9 +176,8 @@ impl BsdfView<'_> {
         if !self.sides_agree(wi_ng, wi_l) {
             return (Rgb::ZERO, SolidAnglePdf(0.0));
         }
-        let b = &self.surface.bsdf;
-        let f = b.eval(self.wo_l, wi_l, mode) * self.correction(mode, wi_ng, wi_l);
-        (f, b.pdf(self.wo_l, wi_l, mode))
+        let (f, pdf) = self.surface.bsdf.eval_pdf(self.wo_l, wi_l, mode);
+        (f * self.correction(mode, wi_ng, wi_l), pdf)
     }
 
     /// The solid-angle density with which [`Self::sample`] returns `wi` (0 for delta lobes).

@@ -306,36 +306,28 @@ pub fn render_sample<K: BdptSink>(
     scratch: Option<&mut BdptScratch>,
     sink: &mut K,
 ) -> SampleResult {
+    // One call, monomorphised for each sampler.
+    macro_rules! sample {
+        ($sampler:expr) => {
+            sample_with(
+                integrator,
+                scene,
+                camera,
+                settings,
+                x,
+                y,
+                scratch,
+                sink,
+                &mut $sampler,
+            )
+        };
+    }
     match sampling.kind {
         SamplerKind::Independent => {
             let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
-            let mut sampler = IndependentSampler::new(sampling.seed, pixel, index);
-            sample_with(
-                integrator,
-                scene,
-                camera,
-                settings,
-                x,
-                y,
-                scratch,
-                sink,
-                &mut sampler,
-            )
+            sample!(IndependentSampler::new(sampling.seed, pixel, index))
         }
-        SamplerKind::ZSobol => {
-            let mut sampler = sampling.zsobol().start_pixel_sample(x, y, index, 0);
-            sample_with(
-                integrator,
-                scene,
-                camera,
-                settings,
-                x,
-                y,
-                scratch,
-                sink,
-                &mut sampler,
-            )
-        }
+        SamplerKind::ZSobol => sample!(sampling.zsobol().start_pixel_sample(x, y, index, 0)),
     }
 }
 

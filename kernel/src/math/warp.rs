@@ -101,8 +101,20 @@ pub fn sample_phong_lobe(u: Vec2, n: f32) -> Vec3 {
 #[inline]
 #[must_use]
 pub fn phong_lobe_pdf(cos_theta: f32, n: f32) -> f32 {
+    let power = if cos_theta > 0.0 {
+        libm::powf(cos_theta, n)
+    } else {
+        0.0
+    };
+    phong_lobe_pdf_of_power(cos_theta, power, n)
+}
+
+/// [`phong_lobe_pdf`] given `power = cos_theta^n` (computed once for the BSDF value too).
+#[inline]
+#[must_use]
+pub fn phong_lobe_pdf_of_power(cos_theta: f32, power: f32, n: f32) -> f32 {
     if cos_theta > 0.0 {
-        (n + 1.0) * INV_2PI * libm::powf(cos_theta, n)
+        (n + 1.0) * INV_2PI * power
     } else {
         0.0
     }

@@ -343,23 +343,30 @@ fn to_unit(v: u32) -> f32 {
     (v >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
-impl Sampler for ZSobolSampler {
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        let [u] = self.next::<1>();
-        u
-    }
+/// [`Sampler`] for a type with `next::<N>()` (the next `N` dimensions) and a `dimension`.
+macro_rules! sampler_from_next {
+    ($t:ty) => {
+        impl Sampler for $t {
+            #[inline]
+            fn next_1d(&mut self) -> f32 {
+                let [u] = self.next::<1>();
+                u
+            }
 
-    #[inline]
-    fn next_2d(&mut self) -> Vec2 {
-        Vec2::from_array(self.next::<2>())
-    }
+            #[inline]
+            fn next_2d(&mut self) -> Vec2 {
+                Vec2::from_array(self.next::<2>())
+            }
 
-    #[inline]
-    fn set_dimension(&mut self, d: u32) {
-        self.dimension = d;
-    }
+            #[inline]
+            fn set_dimension(&mut self, d: u32) {
+                self.dimension = d;
+            }
+        }
+    };
 }
+
+sampler_from_next!(ZSobolSampler);
 
 /// Dimensions whose key and per-pixel index part a [`ZSobolPixelSampler`] remembers: slot
 /// `dimension % MEMO_SLOTS` (direct-mapped, so BDPT's light-subpath dimensions far above the
@@ -427,23 +434,7 @@ impl ZSobolPixelSampler {
     }
 }
 
-impl Sampler for ZSobolPixelSampler {
-    #[inline]
-    fn next_1d(&mut self) -> f32 {
-        let [u] = self.next::<1>();
-        u
-    }
-
-    #[inline]
-    fn next_2d(&mut self) -> Vec2 {
-        Vec2::from_array(self.next::<2>())
-    }
-
-    #[inline]
-    fn set_dimension(&mut self, d: u32) {
-        self.dimension = d;
-    }
-}
+sampler_from_next!(ZSobolPixelSampler);
 
 #[cfg(test)]
 mod tests {
