@@ -72,7 +72,7 @@ for entry in "${scenes[@]}"; do
     if cmp -s "$out/det.exr" "$out/fma.exr"; then
         fma_image="bit-identical"
     else
-        cmp_out=$("$out/ember-det" compare "$out/fma.exr" "$out/det.exr" 2>&1 | tr '\n' ' ')
+        cmp_out=$("$out/ember-det" compare "$out/fma.exr" "$out/det.exr" 2>&1 | tr -s '\n ' '  ')
         fma_image="differs: rmse $(sed -n 's/.* rmse \([^ ]*\).*/\1/p' <<<"$cmp_out"), max_abs $(sed -n 's/.* max_abs \([^ ]*\).*/\1/p' <<<"$cmp_out")"
     fi
     ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f", a / b }'; }

@@ -1,7 +1,8 @@
 # Shared setup of the Mitsuba scripts (sourced by run.sh and materials.sh): a virtual
 # environment bench/venv with Mitsuba 3 and numpy from PyPI (~300 MB installed), LLVM 19 for
 # the llvm_ad_* variants (Debian's libllvm19, found through DRJIT_LIBLLVM_PATH) unless
-# NEED_LLVM=0, and a release build of ember unless NEED_EMBER=0. Sets VENV, ROOT, EMBER.
+# NEED_LLVM=0, and a release build of ember unless NEED_EMBER=0 (and one for this CPU with
+# EMBER_NATIVE=1). Sets VENV, ROOT, EMBER, EMBER_NATIVE_BIN.
 : "${HERE:?set HERE to bench/mitsuba before sourcing env.sh}"
 ROOT="$(cd "$HERE/../.." && pwd)"
 VENV="$ROOT/bench/venv"
@@ -38,4 +39,13 @@ EMBER="$CARGO_TARGET_DIR/release/ember"
 if [ "${NEED_EMBER:-1}" != 0 ]; then
     echo "== cargo build --release -p ember-cli"
     (cd "$ROOT" && cargo build --release --quiet -p ember-cli --bin ember)
+fi
+# With EMBER_NATIVE=1, also ember built for this CPU (-C target-cpu=native: the same images,
+# bench/determinism-cost), as EMBER_NATIVE_BIN.
+EMBER_NATIVE_BIN=""
+if [ "${EMBER_NATIVE:-0}" = 1 ]; then
+    echo "== cargo build --release -p ember-cli (-C target-cpu=native)"
+    (cd "$ROOT" && RUSTFLAGS="-C target-cpu=native" CARGO_TARGET_DIR="$CARGO_TARGET_DIR/native" \
+        cargo build --release --quiet -p ember-cli --bin ember)
+    EMBER_NATIVE_BIN="$CARGO_TARGET_DIR/native/release/ember"
 fi

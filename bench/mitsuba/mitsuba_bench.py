@@ -355,6 +355,10 @@ def interp_time(points, target):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ember", required=True, help="the ember binary")
+    ap.add_argument("--ember-native",
+                    help="a second ember binary built with -C target-cpu=native (bit-identical images): its "
+                         "ladders and tables follow the first's, files bench_native[_<sampler>].csv/.svg, since "
+                         "Mitsuba's llvm variant also compiles for this CPU")
     ap.add_argument("--scene", default=os.path.join(ROOT, "data/cornell-box/cornell_box.toml"))
     ap.add_argument("--size", type=int, default=256, help="square film side (default for --width and --height)")
     ap.add_argument("--width", type=int, help="film width (default: --size)")
@@ -494,12 +498,16 @@ def main():
 
     # 5. ember's ladders (one per sampler) against the same reference, plotted with Mitsuba's.
     curves = {name: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == label] for name, label in series}
-    for sampler in args.ember_samplers.split(","):
-        suffix = "" if sampler == "independent" else f"_{sampler}"
+    builds = [("", args.ember, "baseline x86-64 build")]
+    if args.ember_native:
+        builds.append(("_native", args.ember_native, "target-cpu=native build"))
+    for (build_suffix, ember, build_name), sampler in (
+            (b, s) for b in builds for s in args.ember_samplers.split(",")):
+        suffix = build_suffix + ("" if sampler == "independent" else f"_{sampler}")
         out_dir = args.out if not suffix else os.path.join(build, f"ember{suffix}")
-        log(f"\n== ember bench: mis, {sampler} sampler, {args.threads} threads")
+        log(f"\n== ember bench: mis, {sampler} sampler, {build_name}, {args.threads} threads")
         subprocess.run(
-            [args.ember, "bench", args.scene, "--reference", reference_path, "--integrators", "mis",
+            [ember, "bench", args.scene, "--reference", reference_path, "--integrators", "mis",
              "--threads", str(args.threads), "--budget", str(args.budget), "--max-spp", str(args.max_spp),
              "--sampler", sampler, "--plot-also", results, "-o", out_dir],
             check=True)
@@ -514,7 +522,7 @@ def main():
         ember_pts = [(float(r["seconds"]), float(r["rel_mse"])) for r in ember_rows]
 
         # 6. Time ratios at equal error.
-        say(f"\n## Time to equal relative MSE (ember `mis`, {sampler} sampler)\n")
+        say(f"\n## Time to equal relative MSE (ember `mis`, {sampler} sampler, {build_name})\n")
         say("ember `mis` time / Mitsuba time, interpolated linearly in log-log between ladder rungs "
             "(below 1: ember is faster). Every relative MSE includes the reference's own noise "
             f"({ref_noise:.1e}), so only errors above 10 times that are listed.")

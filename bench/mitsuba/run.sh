@@ -6,6 +6,7 @@
 #
 #   bench/mitsuba/run.sh                       # 256x256, 2 threads, 4096-spp references
 #   SCENE=tinyrender-cbox bench/mitsuba/run.sh # TinyRender's cbox.obj, sphere made diffuse
+#   EMBER_NATIVE=1 bench/mitsuba/run.sh        # also ember built with -C target-cpu=native
 #   REF_SPP=128 MITSUBA_REF_SPP=128 SPLITS=8 BUDGET=0.5 MAX_SPP=16 OUT=/tmp/smoke \
 #       bench/mitsuba/run.sh                   # a quick smoke run (a few minutes)
 #
@@ -59,4 +60,5 @@ exec "$VENV/bin/python" "$HERE/mitsuba_bench.py" --ember "$EMBER" \
     --scene "$SCENE_PATH" --width "$WIDTH" --height "$HEIGHT" --threads "$THREADS" \
     --ref-spp "$REF_SPP" --mitsuba-ref-spp "$MITSUBA_REF_SPP" --splits "$SPLITS" \
     --budget "$BUDGET" --max-spp "$MAX_SPP" --ember-samplers "$EMBER_SAMPLERS" \
-    --mitsuba-samplers "$MITSUBA_SAMPLERS" --out "$OUT"
+    --mitsuba-samplers "$MITSUBA_SAMPLERS" --out "$OUT" \
+    ${EMBER_NATIVE_BIN:+--ember-native "$EMBER_NATIVE_BIN"}
