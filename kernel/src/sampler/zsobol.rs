@@ -302,7 +302,9 @@ impl ZSobolLayout {
     pub fn pixel_sampler(&self, x: u32, y: u32) -> ZSobolPixelSampler {
         ZSobolPixelSampler {
             layout: *self,
+            pixel_index: self.morton_index(x, y, 0),
             morton_index: self.morton_index(x, y, 0),
+            past_layout: false,
             dimension: 0,
             tags: [u32::MAX; MEMO_SLOTS],
             keys: [0; MEMO_SLOTS],
@@ -384,7 +386,11 @@ pub const MEMO_SLOTS: usize = 64;
 #[derive(Clone, Debug)]
 pub struct ZSobolPixelSampler {
     layout: ZSobolLayout,
+    /// The pixel's Morton index with sample index 0.
+    pixel_index: u64,
     morton_index: u64,
+    /// The sample index is past the layout's capacity (see [`Self::start_sample`]).
+    past_layout: bool,
     dimension: u32,
     /// The dimension each slot holds (`u32::MAX`: none).
     tags: [u32; MEMO_SLOTS],
@@ -401,8 +407,11 @@ impl ZSobolPixelSampler {
             index < self.layout.capacity(),
             "ZSobol sample index past the layout"
         );
-        let pixel_bits = !0u64 << self.layout.log2_spp;
-        self.morton_index = (self.morton_index & pixel_bits) | u64::from(index);
+        self.morton_index = self.pixel_index | u64::from(index);
+        // An index past the layout runs into the pixel bits, as it does in
+        // `start_pixel_sample`; its values are computed as there, without the memo, which holds
+        // this pixel's parts.
+        self.past_layout = index >= self.layout.capacity();
         self.dimension = dimension;
     }
 
@@ -417,6 +426,11 @@ impl ZSobolPixelSampler {
     #[inline]
     fn next<const N: usize>(&mut self) -> [f32; N] {
         let d = self.dimension;
+        if self.past_layout {
+            let key = self.layout.dimension_key(d);
+            self.dimension = d.wrapping_add(N as u32);
+            return draw(self.layout.sample_index(self.morton_index, key), key);
+        }
         let slot = d as usize % MEMO_SLOTS;
         let (key, pixel_part) = if self.tags[slot] == d {
             (self.keys[slot], self.pixel_parts[slot])
@@ -608,6 +622,23 @@ mod tests {
                         }
                     }
                 }
+            }
+        }
+    }
+
+    /// Sample indices past the layout (a contract violation, caught by a debug assertion) give
+    /// `start_pixel_sample`'s values in release builds too, and do not spoil the memo for the
+    /// valid samples after them.
+    #[cfg(not(debug_assertions))]
+    #[test]
+    fn the_pixel_sampler_past_its_layout_draws_what_start_pixel_sample_draws() {
+        let layout = ZSobolLayout::new(5, 8, 64, 48);
+        let mut memo = layout.pixel_sampler(9, 4);
+        for i in [0u32, 3, 8, 9, 13, 2, 700, 7, 1] {
+            let mut fresh = layout.start_pixel_sample(9, 4, i, 0);
+            memo.start_sample(i, 0);
+            for _ in 0..30 {
+                assert_eq!(fresh.next_2d(), memo.next_2d(), "index {i}");
             }
         }
     }
