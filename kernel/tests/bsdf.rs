@@ -15,7 +15,7 @@
 //!   shading frames, the light-leak guard, and `Scatter` against `eval`/`pdf`.
 
 use ember_kernel::bsdf::{
-    Bsdf, BsdfFlags, Conductor, Dielectric, Diffuse, Phong, SurfaceBsdf, TransportMode,
+    Bsdf, BsdfFlags, BsdfSample, Conductor, Dielectric, Diffuse, Phong, SurfaceBsdf, TransportMode,
 };
 use ember_kernel::glam::{DVec3, Vec2, Vec3};
 use ember_kernel::math::{warp, Frame};
@@ -1866,4 +1866,58 @@ fn eval_pdf_is_eval_and_pdf_bit_for_bit() {
         }
     }
     assert!(lobe_hits > 10_000, "too few Phong samples: {lobe_hits}");
+}
+
+#[test]
+fn bsdfs_that_skip_the_lobe_choice_ignore_it() {
+    // The path loop draws the lobe-choice number only where `uses_lobe_choice` says so and
+    // passes 0 otherwise: those BSDFs must sample identically whatever `uc` is. The others
+    // must depend on it (or the flag would skip a number that matters unnoticed).
+    let mut bsdfs = configurations();
+    bsdfs.push((
+        "Conductor smooth".into(),
+        Bsdf::Conductor(Conductor::new(Vec3::splat(0.9), 0.0)),
+    ));
+    bsdfs.extend(
+        rough_conductors()
+            .into_iter()
+            .map(|(n, c)| (n, Bsdf::Conductor(c))),
+    );
+    bsdfs.extend(
+        rough_dielectrics()
+            .into_iter()
+            .map(|(n, d)| (n, Bsdf::Dielectric(d))),
+    );
+    bsdfs.push((
+        "Dielectric smooth".into(),
+        Bsdf::Dielectric(Dielectric::new(1.5, Vec3::ONE, 0.0)),
+    ));
+    let key = |s: Option<BsdfSample>| {
+        s.map(|s| {
+            (
+                s.wi.to_array().map(f32::to_bits),
+                s.f.to_array().map(f32::to_bits),
+                s.pdf.0.to_bits(),
+            )
+        })
+    };
+    for (name, bsdf) in &bsdfs {
+        let mut depends = false;
+        for i in 0..2000u64 {
+            let wo = warp::sample_uniform_sphere(uniform(21, i));
+            let u = uniform(22, i);
+            let a = key(bsdf.sample(wo, 0.0, u, MODE));
+            let b = key(bsdf.sample(wo, lobe(23, i), u, MODE));
+            if bsdf.uses_lobe_choice() {
+                depends |= a != b;
+            } else {
+                assert_eq!(a, b, "{name}: sample depends on uc");
+            }
+        }
+        if bsdf.uses_lobe_choice() {
+            // A Phong with Kd = 0 has one lobe in effect (w_s = 1) and may ignore uc.
+            let single = matches!(bsdf, Bsdf::Phong(p) | Bsdf::Mixture(p) if p.specular_weight >= 1.0 || p.specular_weight <= 0.0);
+            assert!(depends || single, "{name}: uses_lobe_choice but ignores uc");
+        }
+    }
 }

@@ -196,6 +196,18 @@ impl Bsdf {
         }
     }
 
+    /// Whether [`Self::sample`] reads its lobe-choice number `uc`: Phong and mixture (glossy
+    /// or diffuse lobe) and dielectrics (reflection or transmission) do; diffuse and conductor
+    /// BSDFs have one lobe and ignore it, so the path loop does not draw it for them.
+    #[inline]
+    #[must_use]
+    pub fn uses_lobe_choice(&self) -> bool {
+        match self {
+            Self::Phong(_) | Self::Mixture(_) | Self::Dielectric(_) => true,
+            Self::Diffuse(_) | Self::Conductor(_) => false,
+        }
+    }
+
     #[inline]
     #[must_use]
     pub fn flags(&self) -> BsdfFlags {

@@ -66,6 +66,13 @@ impl SurfaceBsdf {
         self.bsdf.flags()
     }
 
+    /// Whether sampling reads the lobe-choice number ([`Bsdf::uses_lobe_choice`]).
+    #[inline]
+    #[must_use]
+    pub fn uses_lobe_choice(&self) -> bool {
+        self.bsdf.uses_lobe_choice()
+    }
+
     /// `|w·n_s|`, the cosine of a world direction with the shading normal.
     #[inline]
     #[must_use]

@@ -1,9 +1,10 @@
 //! The layout of a path sample's dimensions: which uniform number is used for what.
 //!
 //! A camera sample starts with [`CAMERA`] dimensions (the offset within the pixel); then every
-//! scattering vertex of the path draws [`PER_BOUNCE`] dimensions in the order of the offsets
-//! below, whether or not it uses all of them, so that dimension `CAMERA + k·PER_BOUNCE + o`
-//! always has the same meaning. A bake sample starts with [`BAKE_VIEW`] dimensions instead
+//! scattering vertex of the path owns [`PER_BOUNCE`] dimensions at the offsets below, so that
+//! dimension `CAMERA + k·PER_BOUNCE + o` always has the same meaning. BDPT's camera subpath
+//! draws all of them ([`Bounce::draw`]); the path tracers draw only those they use
+//! ([`BounceDims`]), which gives the same numbers since each is a function of its dimension. A bake sample starts with [`BAKE_VIEW`] dimensions instead
 //! (the view direction), then the same per-bounce layout. A light path starts with
 //! [`LIGHT_START`] dimensions and draws [`PER_LIGHT_BOUNCE`] per vertex: at dimension 0 in
 //! light tracing, at [`BDPT_LIGHT_SUBPATH`] in BDPT, past every dimension the longest camera
@@ -60,6 +61,66 @@ impl Bounce {
             direction,
             roulette,
         }
+    }
+}
+
+/// The numbers of one scattering vertex drawn one by one where they are used, each from its
+/// slot of the layout: a number that is not needed (the emitter numbers without next-event
+/// estimation, the lobe choice of a single-lobe BSDF, the roulette number before roulette
+/// starts) is not drawn. That changes no other number, since each is a pure function of its
+/// dimension, so a path gets the numbers [`Bounce::draw`] would give it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BounceDims {
+    base: u32,
+}
+
+impl BounceDims {
+    /// The vertex whose numbers start at the sampler's current dimension.
+    #[inline]
+    pub fn start<S: Sampler>(sampler: &S) -> Self {
+        Self {
+            base: sampler.dimension(),
+        }
+    }
+
+    #[inline]
+    fn at<S: Sampler>(&self, sampler: &mut S, offset: u32) {
+        sampler.set_dimension(self.base.wrapping_add(offset));
+    }
+
+    /// The emitter choice and the point on it ([`LIGHT_SELECT`], [`LIGHT_POSITION`]).
+    #[inline]
+    pub fn light<S: Sampler>(&self, sampler: &mut S) -> (f32, Vec2) {
+        self.at(sampler, LIGHT_SELECT);
+        let select = sampler.next_1d();
+        (select, sampler.next_2d())
+    }
+
+    /// The lobe choice ([`BSDF_LOBE`]).
+    #[inline]
+    pub fn lobe<S: Sampler>(&self, sampler: &mut S) -> f32 {
+        self.at(sampler, BSDF_LOBE);
+        sampler.next_1d()
+    }
+
+    /// The direction within the lobe ([`BSDF_DIRECTION`]).
+    #[inline]
+    pub fn direction<S: Sampler>(&self, sampler: &mut S) -> Vec2 {
+        self.at(sampler, BSDF_DIRECTION);
+        sampler.next_2d()
+    }
+
+    /// The roulette number ([`ROULETTE`]).
+    #[inline]
+    pub fn roulette<S: Sampler>(&self, sampler: &mut S) -> f32 {
+        self.at(sampler, ROULETTE);
+        sampler.next_1d()
+    }
+
+    /// Moves the sampler to the next vertex's first dimension.
+    #[inline]
+    pub fn finish<S: Sampler>(&self, sampler: &mut S) {
+        self.at(sampler, PER_BOUNCE);
     }
 }
 

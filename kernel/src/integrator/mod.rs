@@ -209,11 +209,19 @@ impl PathSettings {
         scene.material(material).is_emissive().then_some(hit)
     }
 
+    /// Whether Russian roulette is played after `bounces` scattering vertices (unbounded
+    /// depth, from `rr_depth` on): otherwise the survival tests below ignore their number.
+    #[inline]
+    #[must_use]
+    pub fn roulette_applies(&self, bounces: u32) -> bool {
+        self.max_depth < 0 && (bounces as i64) >= i64::from(self.rr_depth)
+    }
+
     /// Russian roulette after `bounces` scattering vertices, with the uniform number `u`.
     /// Returns false when the path is terminated; on survival divides `beta` by `rr_prob`.
     #[inline]
     pub fn survives_roulette(&self, bounces: u32, u: f32, beta: &mut Rgb) -> bool {
-        if self.max_depth >= 0 || (bounces as i64) < i64::from(self.rr_depth) {
+        if !self.roulette_applies(bounces) {
             return true;
         }
         if u >= self.rr_prob {
@@ -238,7 +246,7 @@ impl PathSettings {
         eta_scale: f32,
         beta: &mut Rgb,
     ) -> bool {
-        if self.max_depth >= 0 || (bounces as i64) < i64::from(self.rr_depth) {
+        if !self.roulette_applies(bounces) {
             return true;
         }
         let q = (*beta * eta_scale).max_element().min(self.rr_prob);

@@ -122,10 +122,12 @@ pub fn li_path_from_surface<S: Sampler>(
         let view = bsdf.seen_from(si.wo);
         let flags = bsdf.flags();
         let next_event = strategy.direct != DirectLighting::BsdfSampling && flags.is_non_specular();
-        let u = dims::Bounce::draw(sampler);
+        // This vertex's numbers, each drawn only if it is used (the same numbers as drawing
+        // them all: `dims::BounceDims`).
+        let u = dims::BounceDims::start(sampler);
         if next_event {
             let mis = strategy.direct == DirectLighting::Mis;
-            let (u_select, u_light) = (u.light_select, u.light);
+            let (u_select, u_light) = u.light(sampler);
             if let Some(d) = sample_direct(scene, &si, &view, u_select, u_light, mis, rays) {
                 let w = if mis {
                     power_heuristic(d.pdf, d.pdf_bsdf)
@@ -144,7 +146,12 @@ pub fn li_path_from_surface<S: Sampler>(
         {
             break;
         }
-        let Some(s) = view.sample(u.lobe, u.direction, TransportMode::Radiance) else {
+        let lobe = if bsdf.uses_lobe_choice() {
+            u.lobe(sampler)
+        } else {
+            0.0
+        };
+        let Some(s) = view.sample(lobe, u.direction(sampler), TransportMode::Radiance) else {
             break;
         };
         // Emission found by the sampled ray counts unless next-event estimation has it.
@@ -156,15 +163,21 @@ pub fn li_path_from_surface<S: Sampler>(
         if s.flags.is_transmission() {
             eta_scale *= s.eta * s.eta;
         }
+        let u_roulette = if settings.roulette_applies(bounces) {
+            u.roulette(sampler)
+        } else {
+            0.0
+        };
         let survives = match strategy.roulette {
-            Roulette::Fixed => settings.survives_roulette(bounces, u.roulette, &mut beta),
+            Roulette::Fixed => settings.survives_roulette(bounces, u_roulette, &mut beta),
             Roulette::Adaptive => {
-                settings.survives_adaptive_roulette(bounces, u.roulette, eta_scale, &mut beta)
+                settings.survives_adaptive_roulette(bounces, u_roulette, eta_scale, &mut beta)
             }
         };
         if !survives {
             break;
         }
+        u.finish(sampler);
         let next = si.spawn_ray(s.wi);
         *rays += 1;
         let hit = if terminal {

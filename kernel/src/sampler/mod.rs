@@ -73,6 +73,8 @@ pub trait Sampler {
     /// Moves to dimension `d`: the next number drawn is dimension `d`'s (for layouts with
     /// fixed dimension slots, [`crate::integrator::dims`]).
     fn set_dimension(&mut self, d: u32);
+    /// The dimension the next number drawn belongs to.
+    fn dimension(&self) -> u32;
 }
 
 /// The default seed of the command-line renderer (`--seed`): 0x656D626572, "ember" in ASCII.
@@ -112,12 +114,6 @@ impl IndependentSampler {
             dimension: 0,
         }
     }
-
-    #[inline]
-    #[must_use]
-    pub fn dimension(&self) -> u32 {
-        self.dimension
-    }
 }
 
 impl Sampler for IndependentSampler {
@@ -132,6 +128,11 @@ impl Sampler for IndependentSampler {
     #[inline]
     fn set_dimension(&mut self, d: u32) {
         self.dimension = d;
+    }
+
+    #[inline]
+    fn dimension(&self) -> u32 {
+        self.dimension
     }
 }
 

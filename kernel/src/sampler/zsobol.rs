@@ -322,13 +322,6 @@ fn draw<const N: usize>(index: u64, key: u64) -> [f32; N] {
 }
 
 impl ZSobolSampler {
-    /// The current dimension.
-    #[inline]
-    #[must_use]
-    pub fn dimension(&self) -> u32 {
-        self.dimension
-    }
-
     /// The next `N` (1 or 2) dimensions.
     #[inline]
     fn next<const N: usize>(&mut self) -> [f32; N] {
@@ -363,6 +356,11 @@ macro_rules! sampler_from_next {
             #[inline]
             fn set_dimension(&mut self, d: u32) {
                 self.dimension = d;
+            }
+
+            #[inline]
+            fn dimension(&self) -> u32 {
+                self.dimension
             }
         }
     };
@@ -413,13 +411,6 @@ impl ZSobolPixelSampler {
         // this pixel's parts.
         self.past_layout = index >= self.layout.capacity();
         self.dimension = dimension;
-    }
-
-    /// The current dimension.
-    #[inline]
-    #[must_use]
-    pub fn dimension(&self) -> u32 {
-        self.dimension
     }
 
     /// The next `N` (1 or 2) dimensions.
