@@ -4,15 +4,15 @@
 //! scattering vertex of the path owns [`PER_BOUNCE`] dimensions at the offsets below, so that
 //! dimension `CAMERA + k·PER_BOUNCE + o` always has the same meaning. BDPT's camera subpath
 //! draws all of them ([`Bounce::draw`]); the path tracers draw only those they use
-//! ([`BounceDims`]), which gives the same numbers since each is a function of its dimension. A bake sample starts with [`BAKE_VIEW`] dimensions instead
-//! (the view direction), then the same per-bounce layout. A light path starts with
-//! [`LIGHT_START`] dimensions and draws [`PER_LIGHT_BOUNCE`] per vertex: at dimension 0 in
-//! light tracing, at [`BDPT_LIGHT_SUBPATH`] in BDPT, past every dimension the longest camera
-//! subpath can draw, so that a light vertex's numbers keep their dimensions whatever the
-//! length of the camera subpath (a quasi-random sampler stratifies a dimension pair over a
-//! pixel's samples only when they all use it for the same thing). In BDPT the camera
-//! subpath's per-bounce emitter numbers are those of its `s = 1` connection (next-event
-//! estimation) at that vertex.
+//! ([`BounceDims`]), which gives the same numbers since each is a function of its dimension. A
+//! bake sample starts with [`BAKE_VIEW`] dimensions instead (the view direction), then the same
+//! per-bounce layout. A light path starts with [`LIGHT_START`] dimensions and draws
+//! [`PER_LIGHT_BOUNCE`] per vertex: at dimension 0 in light tracing, at [`BDPT_LIGHT_SUBPATH`]
+//! in BDPT, past every dimension the longest camera subpath can draw, so that a light vertex's
+//! numbers keep their dimensions whatever the length of the camera subpath (a quasi-random
+//! sampler stratifies a dimension pair over a pixel's samples only when they all use it for the
+//! same thing). In BDPT the camera subpath's per-bounce emitter numbers are those of its
+//! `s = 1` connection (next-event estimation) at that vertex.
 
 use crate::sampler::Sampler;
 use glam::Vec2;
