@@ -1004,6 +1004,73 @@ fn deep_unbalanced_tree_fits_the_traversal_stack() {
     }
 }
 
+/// A tree made by hand in which a ray along +x enters every box and meets the nearest
+/// triangles deepest: a chain whose every node holds the farthest remaining triangle as a leaf
+/// beside the subtree of the nearer ones. Its wide collapse has three leaves and one interior
+/// child per node, 16 levels; at each the walk descends first and defers the three leaves, so
+/// it outgrows the short stack (`SHORT_TRAVERSAL_STACK`) and is made again with the full one.
+/// Hits, any-hit answers and the flags returned must be those of brute force and the binary
+/// tree, in both directions and with bounds before, inside and after the triangles.
+#[test]
+fn walks_that_outgrow_the_short_stack_are_made_again() {
+    let n = 48usize;
+    // Triangle k across the x axis at x = n − k.
+    let tris: Vec<Tri> = (0..n)
+        .map(|k| {
+            let x = (n - k) as f32;
+            [
+                Vec3::new(x, -1.0, -1.0),
+                Vec3::new(x, 3.0, -1.0),
+                Vec3::new(x, -1.0, 3.0),
+            ]
+        })
+        .collect();
+    let bounds_of = |ks: std::ops::Range<usize>| {
+        ks.map(|k| tri_bounds(&tris[k]))
+            .fold(Aabb::EMPTY, Aabb::union)
+    };
+    let node = |b: Aabb, offset: usize, count: u16| BvhNode {
+        min: b.min.to_array(),
+        offset: offset as u32,
+        max: b.max.to_array(),
+        count,
+        axis: 0,
+        pad: 0,
+    };
+    // Pre-order: interior k over triangles k.., then its leaf (triangle k), then the rest.
+    let mut nodes = Vec::new();
+    for k in 0..n - 1 {
+        let i = nodes.len();
+        nodes.push(node(bounds_of(k..n), i + 2, 0));
+        nodes.push(node(bounds_of(k..k + 1), k, 1));
+    }
+    nodes.push(node(bounds_of(n - 1..n), n - 1, 1));
+    let b = Built::with_nodes(nodes, (0..n as u32).collect(), &tris);
+    validate_wide(&b);
+    for (o, d) in [
+        (Vec3::new(0.0, 0.0, 0.0), Vec3::X),
+        (
+            Vec3::new(0.0, 0.1, 0.2),
+            Vec3::new(1.0, 0.01, 0.02).normalize(),
+        ),
+        (Vec3::new(n as f32 + 1.0, 0.0, 0.0), Vec3::NEG_X),
+    ] {
+        let brute = brute_closest(&tris, o, d);
+        assert!(brute.is_some(), "o={o} d={d}: the ray misses the triangles");
+        for t_max in [f32::INFINITY, 0.5, 10.5, n as f32 + 2.0] {
+            let fast = bvh_closest(&b, &tris, o, d, t_max);
+            let expected = brute.filter(|&(_, t)| t < t_max);
+            assert_eq!(
+                fast.map(|(p, t)| (p, t.to_bits())),
+                expected.map(|(p, t)| (p, t.to_bits())),
+                "o={o} d={d} t_max={t_max}"
+            );
+            assert_same_hits(&b, &tris, o, d, t_max);
+            assert_eq!(bvh_occluded(&b, &tris, o, d, t_max), expected.is_some());
+        }
+    }
+}
+
 /// The collapse of the smallest trees, its refusals of bad input, and the wide traversal on
 /// degenerate rays (zero direction components, origins on box planes, NaN) against binary.
 #[test]

@@ -18,7 +18,7 @@ pub use build::{
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 pub use wide::{
     align_leaves, aligned_order_len, collapse, gather_leaf_groups, max_wide_nodes, WideBvh,
-    WideNode, SMALL_TREE_NODES, WIDE_LEAF, WIDE_MAX_DEPTH, WIDE_TRAVERSAL_STACK, WIDTH,
+    WideNode, SHORT_TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH, WIDE_TRAVERSAL_STACK, WIDTH,
 };
 
 use crate::geometry::{Aabb, TriangleGroup};

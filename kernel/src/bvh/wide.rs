@@ -35,12 +35,14 @@ pub const WIDE_MAX_DEPTH: usize = MAX_DEPTH.div_ceil(2);
 /// Traversal stack capacity: at most `WIDTH − 1` deferred children per level plus the
 /// at most `WIDTH` entries of the node being expanded.
 pub const WIDE_TRAVERSAL_STACK: usize = (WIDTH - 1) * WIDE_MAX_DEPTH + WIDTH;
-/// Trees of at most this many nodes are traversed with a smaller stack: each node is expanded
-/// at most once and leaves at most `WIDTH − 1` more entries than it took, so
-/// `(WIDTH − 1) · nodes + WIDTH` entries suffice. Zeroing the full stack for every ray costs
-/// about 4% of a Cornell box render.
-pub const SMALL_TREE_NODES: usize = 16;
-const SMALL_TREE_STACK: usize = (WIDTH - 1) * SMALL_TREE_NODES + WIDTH;
+/// The stack a ray's walk starts with. Safe Rust zeroes a stack before use, and zeroing the
+/// full [`WIDE_TRAVERSAL_STACK`] for every ray was 3% of a render's instructions; few rays
+/// ever defer this many children, and a walk that would is abandoned and made again with the
+/// full stack (the second walk gives the hit, and the first one's calls change nothing: the
+/// closest-hit order does not depend on which triangles were tested before). Trees of up to
+/// `(SHORT_TRAVERSAL_STACK − WIDTH) / (WIDTH − 1)` nodes never need more: each node is expanded
+/// once and leaves at most `WIDTH − 1` more entries than it took.
+pub const SHORT_TRAVERSAL_STACK: usize = 32;
 /// Marks a leaf child in [`WideNode::child`]; the bits below it are the first index into the
 /// primitive order.
 pub const WIDE_LEAF: u32 = 1 << 31;
@@ -315,6 +317,11 @@ impl WideBvh<'_> {
     /// returns the distance of a hit closer than the `t_max` it was given. With `ANY_HIT`,
     /// traversal stops at the first hit (shadow rays); otherwise `t_max` shrinks to the
     /// closest hit so far. Returns whether anything was hit.
+    ///
+    /// A walk that outgrows [`SHORT_TRAVERSAL_STACK`] is made again from the root with the full
+    /// stack, so `hit` may be offered a primitive twice, the second time with a larger `t_max`:
+    /// a closest-hit callback must keep the closest hit itself (by the closest-hit order, as
+    /// `SceneView::intersect` does) rather than take every hit it is offered.
     #[inline]
     pub fn traverse<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
         &self,
@@ -343,14 +350,21 @@ impl WideBvh<'_> {
         t_max: f32,
         leaf: F,
     ) -> bool {
-        if self.nodes.len() <= SMALL_TREE_NODES {
-            self.traverse_with::<ANY_HIT, F, SMALL_TREE_STACK>(o, d, t_max, leaf)
-        } else {
-            self.traverse_with::<ANY_HIT, F, WIDE_TRAVERSAL_STACK>(o, d, t_max, leaf)
+        let mut leaf = leaf;
+        match self.traverse_with::<ANY_HIT, _, SHORT_TRAVERSAL_STACK>(o, d, t_max, &mut leaf) {
+            Ok(any) => any,
+            // (An abandoned any-hit walk has found nothing: it would have stopped.)
+            Err(any) => {
+                let again =
+                    self.traverse_with::<ANY_HIT, _, WIDE_TRAVERSAL_STACK>(o, d, t_max, &mut leaf);
+                any | again.unwrap_or_else(|any| any)
+            }
         }
     }
 
-    /// [`Self::traverse`] with a stack of `STACK` entries.
+    /// [`Self::traverse`] with a stack of `STACK` entries: `Ok(anything hit)`, or
+    /// `Err(anything hit so far)` if the walk needed more room and was abandoned (never with
+    /// [`WIDE_TRAVERSAL_STACK`]).
     #[inline]
     fn traverse_with<
         const ANY_HIT: bool,
@@ -362,9 +376,9 @@ impl WideBvh<'_> {
         d: Vec3,
         mut t_max: f32,
         mut leaf: F,
-    ) -> bool {
+    ) -> Result<bool, bool> {
         if self.nodes.is_empty() {
-            return false;
+            return Ok(false);
         }
         let slab = Slab::new(o, d);
         // Children still to visit, the next one on top: (node index, or WIDE_LEAF | parent
@@ -374,6 +388,10 @@ impl WideBvh<'_> {
         let mut any = false;
         let mut index = 0usize;
         loop {
+            // Room for the node's children (a check the full stack does not need).
+            if STACK < WIDE_TRAVERSAL_STACK && sp + WIDTH > STACK {
+                return Err(any);
+            }
             let node = &self.nodes[index];
             let (t0, bits) = slab.hit(node, t_max);
             let t0 = t0.to_array();
@@ -409,7 +427,7 @@ impl WideBvh<'_> {
             // far (the bound may have shrunk since it was pushed); run the leaves.
             loop {
                 if sp == 0 {
-                    return any;
+                    return Ok(any);
                 }
                 sp -= 1;
                 let (reference, entry) = stack[sp];
@@ -428,7 +446,7 @@ impl WideBvh<'_> {
                 if let Some(t) = leaf(first, u32::from(parent.count[lane]), t_max) {
                     any = true;
                     if ANY_HIT {
-                        return true;
+                        return Ok(true);
                     }
                     // Never farther: a hit test may round a distance just past the `t_max` it
                     // was given, and a growing `t_max` would make the visit depend on when a
