@@ -13,8 +13,9 @@
 //! replayed the binary tree's visiting order, per ray octant, to make the same triangle tests
 //! in the same order; nearest first traces camera rays 1.4–1.5 times as fast.)
 //!
-//! Determinism: the slab test uses subtraction, multiplication, comparisons, selects and
-//! NaN-free `min`/`max`, which every glam backend (SSE2, NEON, wasm SIMD, scalar) computes
+//! Determinism: the slab test uses subtraction, multiplication, comparisons and `min`/`max`
+//! that ignore a NaN slab (by operand order on x86-64, by a select elsewhere:
+//! `max_ignoring_nan`), which every glam backend (SSE2, NEON, wasm SIMD, scalar) computes
 //! identically to the scalar [`crate::geometry::Aabb::hit`].
 
 // The one use of glam's SIMD `Vec4` in the kernel (clippy.toml bans it for its dot products
