@@ -11,7 +11,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 const SPP: u32 = 16_000;
-/// `pass_size` in host-cli/src/render.rs: spp/16.
+/// `pass_size` in host-cli/src/render.rs: spp/16 (above its minimum of 8 for path tracers).
 const PASS: u32 = SPP / 16;
 
 /// Runs a long render and interrupts it after `wait`; returns (exit code, stderr).

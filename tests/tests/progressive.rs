@@ -74,9 +74,11 @@ fn passes_of_any_size_give_render_bit_for_bit() {
         Integrator::PathExplicit,
         Integrator::PathMis,
     ] {
-        // 37 spp: render() makes passes of 3 (12 of them and one of 1).
+        // 37 spp: render() makes passes of 8 (four of them and one of 5; the splatting
+        // integrators' would be of 3).
         let s = settings(&scene, integrator, 37, 16);
-        assert_eq!(pass_size(37), 3);
+        assert_eq!(pass_size(37, integrator.splats()), 8);
+        assert_eq!(pass_size(37, true), 3);
         let want = render(&view, &camera, &s);
         // Passes that have nothing to do with render()'s, in another tile size.
         let mut p = Progressive::new(camera, &settings(&scene, integrator, 37, 7));
