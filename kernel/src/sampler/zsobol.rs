@@ -380,7 +380,8 @@ pub const MEMO_SLOTS: usize = 64;
 /// only on the pixel and the dimension, are computed once per pixel instead of once per
 /// sample (the digits of a 320 × 240 film at 32 spp are nine of twelve). On TinyRender's
 /// Cornell box (MIS), that takes the sampler's instructions beyond independent sampling's from
-/// 520 M to 457 M at 2 samples per call (32 spp in 16 passes) and to 343 M at 32 per call.
+/// 520 M to 457 M at 2 samples per call (32 spp in 16 passes) and to 343 M at 32 per call,
+/// which is why `ember render` makes a path tracer's passes of at least 8 samples.
 #[derive(Clone, Debug)]
 pub struct ZSobolPixelSampler {
     layout: ZSobolLayout,
