@@ -349,9 +349,8 @@ impl WideBvh<'_> {
         o: Vec3,
         d: Vec3,
         t_max: f32,
-        leaf: F,
+        mut leaf: F,
     ) -> bool {
-        let mut leaf = leaf;
         match self.traverse_with::<ANY_HIT, _, SHORT_TRAVERSAL_STACK>(o, d, t_max, &mut leaf) {
             Ok(any) => any,
             // (An abandoned any-hit walk has found nothing: it would have stopped.)
