@@ -62,6 +62,16 @@ export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/ember-target}"
 echo "== cargo build --release -p ember-tests --bin ember-bvh-embree"
 (cd "$ROOT" && cargo build --release --quiet -p ember-tests --bin ember-bvh-embree)
 BIN="$CARGO_TARGET_DIR/release/ember-bvh-embree"
+# The same bench built for this CPU (AVX builds get eight-wide BVH nodes, kernel/src/bvh/lanes.rs),
+# as Embree picks its AVX2/AVX-512 kernels at run time. NATIVE_RUSTFLAGS="" skips it.
+NATIVE_RUSTFLAGS="${NATIVE_RUSTFLAGS--C target-cpu=native}"
+NBIN=""
+if [ -n "$NATIVE_RUSTFLAGS" ]; then
+    echo "== RUSTFLAGS=\"$NATIVE_RUSTFLAGS\" cargo build --release -p ember-tests --bin ember-bvh-embree"
+    (cd "$ROOT" && RUSTFLAGS="$NATIVE_RUSTFLAGS" cargo build --release --quiet -p ember-tests \
+        --bin ember-bvh-embree --target-dir "$CARGO_TARGET_DIR-native")
+    NBIN="$CARGO_TARGET_DIR-native/release/ember-bvh-embree"
+fi
 
 # One thread pinned to one CPU, as bench.py pins Embree's 1-thread runs.
 pin=()
@@ -71,15 +81,24 @@ fi
 echo "== uptime: $(uptime)"
 # One process per scene and thread count (each well under 2 minutes).
 : >"$RES/ember-1t.jsonl"; : >"$RES/ember-1t.txt"; : >"$RES/ember-2t.jsonl"; : >"$RES/ember-2t.txt"
+: >"$RES/ember-native-1t.jsonl"; : >"$RES/ember-native-1t.txt"
+: >"$RES/ember-native-2t.jsonl"; : >"$RES/ember-native-2t.txt"
 for s in ${SCENES//,/ }; do
-    echo "== ember $s, 1 thread"
-    "${pin[@]}" "$BIN" "$DATA" --scenes "$s" --threads 1 --passes "$PASSES" --json "$RES/part.jsonl" \
-        | tee -a "$RES/ember-1t.txt"
-    cat "$RES/part.jsonl" >>"$RES/ember-1t.jsonl"
-    echo "== ember $s, 2 threads"
-    "$BIN" "$DATA" --scenes "$s" --threads 2 --passes "$PASSES" --json "$RES/part.jsonl" \
-        | tee -a "$RES/ember-2t.txt"
-    cat "$RES/part.jsonl" >>"$RES/ember-2t.jsonl"
+    for build in portable native; do
+        bin="$BIN"; tag=""
+        if [ "$build" = native ]; then
+            [ -n "$NBIN" ] || continue
+            bin="$NBIN"; tag="-native"
+        fi
+        echo "== ember ($build build) $s, 1 thread"
+        "${pin[@]}" "$bin" "$DATA" --scenes "$s" --threads 1 --passes "$PASSES" --json "$RES/part.jsonl" \
+            | tee -a "$RES/ember$tag-1t.txt"
+        cat "$RES/part.jsonl" >>"$RES/ember$tag-1t.jsonl"
+        echo "== ember ($build build) $s, 2 threads"
+        "$bin" "$DATA" --scenes "$s" --threads 2 --passes "$PASSES" --json "$RES/part.jsonl" \
+            | tee -a "$RES/ember$tag-2t.txt"
+        cat "$RES/part.jsonl" >>"$RES/ember$tag-2t.jsonl"
+    done
 done
 rm -f "$RES/part.jsonl"
 echo "== Embree: bench.py --skip-native"
@@ -90,5 +109,8 @@ sampler=$!
 kill "$sampler"; wait "$sampler" || true
 cp "$DATA/results/bench_results.json" "$DATA/RESULTS.md" "$RES/"
 echo "== uptime: $(uptime)"
+native=()
+[ -n "$NBIN" ] && native=(--ember-native "$RES/ember-native-1t.jsonl" "$RES/ember-native-2t.jsonl"
+    --native-flags "$NATIVE_RUSTFLAGS")
 "$VENV/bin/python" "$HERE/table.py" --data "$DATA" --ember "$RES/ember-1t.jsonl" "$RES/ember-2t.jsonl" \
-    --out "$OUT/table.md"
+    "${native[@]}" --out "$OUT/table.md"

@@ -1173,7 +1173,8 @@ fn wide_collapse_edge_cases() {
         });
         nodes
     };
-    let deep = chain(400);
+    // (A chain of n collapses to about n / (WIDTH − 1) wide levels.)
+    let deep = chain((WIDE_MAX_DEPTH * WIDTH) as u32);
     let mut out = vec![WideNode::default(); max_wide_nodes(deep.len())];
     assert_eq!(collapse(&deep, &mut out), Err(BvhError::TooDeep));
     let shallow = chain(100);

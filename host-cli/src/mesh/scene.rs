@@ -51,7 +51,7 @@ pub struct SceneData {
     pub emitter_cdf: Vec<f32>,
     /// Number of emitters (objects whose first face is emissive).
     pub emitter_count: usize,
-    /// The four-wide BVH the renderer traces (the binary build is collapsed and dropped).
+    /// The wide BVH (4 lanes, 8 in AVX builds) the renderer traces (the binary build is collapsed and dropped).
     pub bvh_nodes: Vec<WideNode>,
     /// The wide tree's primitive order, each leaf starting at a multiple of four
     /// ([`bvh::align_leaves`]; padded with repeats of the leaf's last triangle).
@@ -382,7 +382,7 @@ impl SceneData {
         Ok(())
     }
 
-    /// Builds the BVH over all triangles, collapses it to the four-wide tree the renderer
+    /// Builds the BVH over all triangles, collapses it to the wide tree the renderer
     /// traces, trims that to the nodes used, and lays its leaves out in groups of four
     /// triangles for the lane-wise triangle test.
     ///

@@ -4,11 +4,12 @@
 //! and the second child is at [`BvhNode::offset`]; a leaf's primitives are
 //! `prim_order[offset .. offset + count]`. Traversal keeps a fixed [`MAX_DEPTH`]-entry stack and visits the
 //! nearer child first. The build (binned SAH, [`build`]) writes straight into caller slices.
-//! [`collapse`] turns the binary tree into a four-wide one ([`WideNode`]): fewer, vectorised
+//! [`collapse`] turns the binary tree into a wide one ([`WideNode`], 4 or 8 lanes): fewer, vectorised
 //! box tests, children visited nearest first, the same hits ([`closest`]).
 
 mod build;
 pub mod closest;
+mod lanes;
 mod traverse;
 mod wide;
 
@@ -25,7 +26,7 @@ use crate::geometry::{Aabb, TriangleGroup};
 use glam::Vec3;
 
 /// The BVH a scene is traced with: the binary tree as built (32-byte nodes, the layout a GPU
-/// upload or a C host uses) or its four-wide collapse (fewer, wider nodes: faster on CPUs).
+/// upload or a C host uses) or its wide collapse (4 or 8 lanes) (fewer, wider nodes: faster on CPUs).
 /// Both visit every primitive a ray may hit, and the scene's closest-hit rule does not depend
 /// on the visit order, so both give the same hits and the same images.
 #[derive(Clone, Copy, Debug)]

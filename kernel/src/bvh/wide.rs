@@ -1,38 +1,37 @@
-//! Four-wide BVH: the binary build collapsed so that one node holds the boxes of up to four
-//! children, tested together by one SIMD slab test.
+//! Wide BVH: the binary build collapsed so that one node holds the boxes of up to [`WIDTH`]
+//! children (eight where the build targets AVX, four elsewhere: [`super::lanes`]), tested
+//! together by one SIMD slab test.
 //!
 //! Why: on small scenes such as the Cornell box a binary traversal spends most of its time on
-//! one data-dependent branch per box. A wide node answers four boxes with straight-line vector
-//! code, and the tree has about a quarter as many nodes.
+//! one data-dependent branch per box. A wide node answers four or eight boxes with
+//! straight-line vector code, and the tree has a quarter to an eighth as many nodes.
 //!
 //! Visiting order: the children a ray enters are taken nearest first (by the entry distance of
 //! their boxes), each tested again against the shrinking `t_max` when it is taken from the
 //! stack. The order decides only how much work a ray costs, not its hit: the scene's
 //! closest-hit rule is a total order on hits ([`super::closest`]), so any traversal that tests
-//! every triangle a ray may hit before its bound finds the same one. (The first version
-//! replayed the binary tree's visiting order, per ray octant, to make the same triangle tests
-//! in the same order; nearest first traces camera rays 1.4–1.5 times as fast.)
+//! every triangle a ray may hit before its bound finds the same one, whatever the width.
+//! (The first version replayed the binary tree's visiting order, per ray octant, to make the
+//! same triangle tests in the same order; nearest first traces camera rays 1.4–1.5 times as
+//! fast.)
 //!
 //! Determinism: the slab test uses subtraction, multiplication, comparisons and `min`/`max`
-//! that ignore a NaN slab (by operand order on x86-64, by a select elsewhere:
-//! `max_ignoring_nan`), which every glam backend (SSE2, NEON, wasm SIMD, scalar) computes
-//! identically to the scalar [`crate::geometry::Aabb::hit`].
+//! that ignore a NaN slab ([`super::lanes`]), which every backend (AVX, SSE2, NEON, wasm SIMD,
+//! scalar) computes identically to the scalar [`crate::geometry::Aabb::hit`].
 
-// The one use of glam's SIMD `Vec4` in the kernel (clippy.toml bans it for its dot products
-// and fused multiply-adds): only lane-wise operations that are exact on every backend are used
-// here, and scripts/determinism.sh checks SSE2, NEON, wasm32 and scalar builds against one hash.
-#![allow(clippy::disallowed_types)]
-
+use super::lanes::{Lanes, LANES};
 use super::{BvhError, BvhNode, MAX_DEPTH};
 use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::math::gamma;
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 
-/// Children per node.
-pub const WIDTH: usize = 4;
-/// Deepest wide level. The collapse opens binary nodes breadth-first, so each wide level spans
-/// at least two binary levels of a tree at most [`MAX_DEPTH`] deep.
-pub const WIDE_MAX_DEPTH: usize = MAX_DEPTH.div_ceil(2);
+/// Children per node: the lanes of one SIMD register ([`super::lanes`]), 8 where the build
+/// targets AVX, 4 elsewhere.
+pub const WIDTH: usize = LANES;
+/// Deepest wide level. Each wide level spans at least one binary level of a tree at most
+/// [`MAX_DEPTH`] deep (the collapse opens the largest child first, so a small sibling may stay
+/// one level down), so no tree from [`super::build`] is refused.
+pub const WIDE_MAX_DEPTH: usize = MAX_DEPTH;
 /// Traversal stack capacity: at most `WIDTH − 1` deferred children per level plus the
 /// at most `WIDTH` entries of the node being expanded.
 pub const WIDE_TRAVERSAL_STACK: usize = (WIDTH - 1) * WIDE_MAX_DEPTH + WIDTH;
@@ -43,13 +42,13 @@ pub const WIDE_TRAVERSAL_STACK: usize = (WIDTH - 1) * WIDE_MAX_DEPTH + WIDTH;
 /// closest-hit order does not depend on which triangles were tested before). Trees of up to
 /// `(SHORT_TRAVERSAL_STACK − WIDTH) / (WIDTH − 1)` nodes never need more: each node is expanded
 /// once and leaves at most `WIDTH − 1` more entries than it took.
-pub const SHORT_TRAVERSAL_STACK: usize = 32;
+pub const SHORT_TRAVERSAL_STACK: usize = 8 * WIDTH;
 /// Marks a leaf child in [`WideNode::child`]; the bits below it are the first index into the
 /// primitive order.
 pub const WIDE_LEAF: u32 = 1 << 31;
 
-/// One 128-byte wide node (`#[repr(C)]`; structure of arrays, so that each axis loads as one
-/// vector). Unused lanes hold empty boxes and empty leaves.
+/// One wide node of 128 bytes (four lanes) or 256 (eight) (`#[repr(C)]`; structure of arrays,
+/// so that each axis loads as one vector). Unused lanes hold empty boxes and empty leaves.
 #[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WideNode {
@@ -64,7 +63,7 @@ pub struct WideNode {
     pub count: [u16; WIDTH],
 }
 
-const _: () = assert!(core::mem::size_of::<WideNode>() == 128);
+const _: () = assert!(core::mem::size_of::<WideNode>() == 32 * WIDTH);
 
 impl Default for WideNode {
     fn default() -> Self {
@@ -144,12 +143,22 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
     let mut next = 0usize;
     while next < used {
         let [source, depth, ..] = wide[next].child;
-        // Open binary nodes breadth-first until there are four children or only leaves.
+        // Open the interior child of largest surface area (the likeliest to be entered) until
+        // there are `WIDTH` children or only leaves.
         let mut lanes = [0u32; WIDTH];
         lanes[..2].copy_from_slice(&children(source)?);
         let mut n = 2;
         while n < WIDTH {
-            let Some(open) = (0..n).find(|&l| !binary[lanes[l] as usize].is_leaf()) else {
+            let mut open = None;
+            let mut largest = f32::NEG_INFINITY;
+            for (l, &b) in lanes[..n].iter().enumerate() {
+                let node = &binary[b as usize];
+                let area = half_area(node);
+                if !node.is_leaf() && (open.is_none() || area > largest) {
+                    (open, largest) = (Some(l), area);
+                }
+            }
+            let Some(open) = open else {
                 break;
             };
             let parent = lanes[open];
@@ -182,6 +191,12 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
         next += 1;
     }
     Ok(used)
+}
+
+/// Half the surface area of a node's box (NaN for an empty box, which no area exceeds).
+fn half_area(node: &BvhNode) -> f32 {
+    let [x, y, z] = core::array::from_fn(|a| node.max[a] - node.min[a]);
+    x * y + y * z + z * x
 }
 
 fn leaf_reference(leaf: &BvhNode) -> Result<u32, BvhError> {
@@ -394,7 +409,6 @@ impl WideBvh<'_> {
             }
             let node = &self.nodes[index];
             let (t0, bits) = slab.hit(node, t_max);
-            let t0 = t0.to_array();
             // Push the children the ray enters, farthest first, so that the nearest is taken
             // next (insertion by entry distance; the closest hit does not depend on the order,
             // `bvh::closest`, only the work does).
@@ -458,10 +472,10 @@ impl WideBvh<'_> {
     }
 }
 
-/// Per-ray constants of the four-lane slab test.
+/// Per-ray constants of the slab test, one lane per child box.
 struct Slab {
-    o: [Vec4; 3],
-    inv_d: [Vec4; 3],
+    o: [Lanes; 3],
+    inv_d: [Lanes; 3],
     neg: [bool; 3],
 }
 
@@ -471,11 +485,11 @@ impl Slab {
         let inv_d = Vec3::ONE / d;
         let neg = [inv_d.x < 0.0, inv_d.y < 0.0, inv_d.z < 0.0];
         Self {
-            o: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
+            o: [Lanes::splat(o.x), Lanes::splat(o.y), Lanes::splat(o.z)],
             inv_d: [
-                Vec4::splat(inv_d.x),
-                Vec4::splat(inv_d.y),
-                Vec4::splat(inv_d.z),
+                Lanes::splat(inv_d.x),
+                Lanes::splat(inv_d.y),
+                Lanes::splat(inv_d.z),
             ],
             neg,
         }
@@ -486,89 +500,24 @@ impl Slab {
     /// (pbrt's conservative rounding of the exit distance; a NaN slab, 0·∞ for an origin on a
     /// slab plane with a zero direction component, does not constrain the ray).
     #[inline]
-    fn hit(&self, node: &WideNode, t_max: f32) -> (Vec4, u32) {
-        let scale = Vec4::splat(1.0 + 2.0 * gamma(3));
-        let mut t0 = Vec4::NEG_INFINITY;
-        let mut t1 = Vec4::INFINITY;
+    fn hit(&self, node: &WideNode, t_max: f32) -> ([f32; WIDTH], u32) {
+        let scale = Lanes::splat(1.0 + 2.0 * gamma(3));
+        let mut t0 = Lanes::splat(f32::NEG_INFINITY);
+        let mut t1 = Lanes::splat(f32::INFINITY);
         for axis in 0..3 {
             let (near, far) = if self.neg[axis] {
-                (node.hi[axis], node.lo[axis])
+                (&node.hi[axis], &node.lo[axis])
             } else {
-                (node.lo[axis], node.hi[axis])
+                (&node.lo[axis], &node.hi[axis])
             };
-            let tn = (Vec4::from_array(near) - self.o[axis]) * self.inv_d[axis];
-            let tf = (Vec4::from_array(far) - self.o[axis]) * self.inv_d[axis] * scale;
-            t0 = max_ignoring_nan(tn, t0);
-            t1 = min_ignoring_nan(tf, t1);
+            let tn = Lanes::load(near).sub(self.o[axis]).mul(self.inv_d[axis]);
+            let tf = Lanes::load(far)
+                .sub(self.o[axis])
+                .mul(self.inv_d[axis])
+                .mul(scale);
+            t0 = tn.max_ignoring_nan(t0);
+            t1 = tf.min_ignoring_nan(t1);
         }
-        let inside = t0.cmple(t1) & t0.cmplt(Vec4::splat(t_max)) & t1.cmpgt(Vec4::ZERO);
-        (t0, inside.bitmask())
-    }
-}
-
-/// `max(a, b)` lane by lane where `a` is a number, `b` where it is NaN (`b` is never NaN).
-///
-/// On x86-64, `a.max(b)` is exactly that: SSE's `maxps` returns its second operand when either
-/// is NaN, and glam's other x86-64 backends (scalar, `core::simd`) take the number, as
-/// `f32::max` does. That saves the NaN test and blend per slab (half the slab test's
-/// instructions on SSE2, which has no blend). NEON's and wasm's maxima propagate NaN, so there
-/// the NaN lanes are replaced first. Both give the same number in every lane, up to the sign of
-/// a zero, which no comparison of the slab test tells apart.
-#[inline(always)]
-fn max_ignoring_nan(a: Vec4, b: Vec4) -> Vec4 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        a.max(b)
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        b.max(Vec4::select(a.is_nan_mask(), Vec4::NEG_INFINITY, a))
-    }
-}
-
-/// `min(a, b)` lane by lane where `a` is a number, `b` where it is NaN; as [`max_ignoring_nan`].
-#[inline(always)]
-fn min_ignoring_nan(a: Vec4, b: Vec4) -> Vec4 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        a.min(b)
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        b.min(Vec4::select(a.is_nan_mask(), Vec4::INFINITY, a))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The NaN rule the slab test relies on, on the backend this test is built for.
-    #[test]
-    fn min_and_max_ignore_a_nan_first_operand() {
-        let values = [
-            f32::NAN,
-            f32::NEG_INFINITY,
-            -1.5,
-            -0.0,
-            0.0,
-            2.0,
-            f32::INFINITY,
-        ];
-        for &a in &values {
-            for &b in &values[1..] {
-                let (va, vb) = (Vec4::new(a, b, a, 1.0), Vec4::new(b, a.max(b), b, 1.0));
-                let max = max_ignoring_nan(va, vb).to_array();
-                let min = min_ignoring_nan(va, vb).to_array();
-                for lane in 0..4 {
-                    let (x, y) = (va[lane], vb[lane]);
-                    let want_max = if x.is_nan() { y } else { x.max(y) };
-                    let want_min = if x.is_nan() { y } else { x.min(y) };
-                    // Equal as numbers (a zero may come back with either sign).
-                    assert!(max[lane] == want_max, "max({x}, {y}) = {}", max[lane]);
-                    assert!(min[lane] == want_min, "min({x}, {y}) = {}", min[lane]);
-                }
-            }
-        }
+        (t0.to_array(), Lanes::entered(t0, t1, t_max))
     }
 }

@@ -623,9 +623,15 @@ fn loadavg() -> String {
 fn run(args: &Args) -> Res<()> {
     let mut json = String::new();
     println!(
-        "ember-bvh-embree: {} (load average {})",
+        "ember-bvh-embree: {} (load average {}); {}-wide BVH nodes ({})",
         args.data.display(),
-        loadavg()
+        loadavg(),
+        ember_kernel::bvh::WIDTH,
+        if cfg!(target_feature = "avx") {
+            "built for AVX"
+        } else {
+            "built without AVX"
+        }
     );
     for scene in &args.scenes {
         let (positions, triangles) = load_scene(&args.data, scene)?;
@@ -668,7 +674,8 @@ fn run(args: &Args) -> Res<()> {
         );
         writeln!(
             json,
-            "{{\"kind\": \"build\", \"scene\": \"{scene}\", \"triangles\": {n_tris}, \"vertices\": {}, \"nodes\": {}, \"build_s\": {}, \"bytes_nodes\": {}, \"bytes_prim_order\": {}, \"bytes_triangles\": {}, \"bytes_positions\": {}, \"bytes_leaf_groups\": {}}}",
+            "{{\"kind\": \"build\", \"scene\": \"{scene}\", \"bvh_width\": {}, \"triangles\": {n_tris}, \"vertices\": {}, \"nodes\": {}, \"build_s\": {}, \"bytes_nodes\": {}, \"bytes_prim_order\": {}, \"bytes_triangles\": {}, \"bytes_positions\": {}, \"bytes_leaf_groups\": {}}}",
+            ember_kernel::bvh::WIDTH,
             data.positions.len(),
             data.bvh_nodes.len(),
             list(&builds),
