@@ -114,7 +114,7 @@ def main():
         head = head.replace("| ember / Embree |", "| portable / Embree | ember native Mrays/s | native / Embree |")
         sep += "---:|---:|"
     if robust:
-        head += " Embree robust Mrays/s (1 thread) | ember / Embree robust |"
+        head += " Embree robust Mrays/s (1 thread) | " + ("portable" if native else "ember") + " / Embree robust |"
         sep += "---:|---:|"
     L += ["## Traversal speed\n", head, sep]
     for s in scenes:
