@@ -235,7 +235,9 @@ pub fn provenance(scene: &LoadedScene, s: &BakeSettings) -> Vec<(String, String)
 
 /// FNV-1a (64-bit) over everything in a kernel scene view that a bake can depend on:
 /// geometry, texture coordinates, materials (their parameters, written out by `Debug`, which
-/// prints every float exactly), emitter table, BVH order, textures and texels.
+/// prints every float exactly), emitter table, textures and texels. Not the BVH: the closest
+/// hit does not depend on the tree (`bvh::closest`), whose layout differs between builds (4-
+/// or 8-wide nodes, `bvh::lanes`), so that a bake's file is the same whatever the build.
 #[must_use]
 pub fn scene_data_hash(v: &ember_kernel::scene::SceneView<'_>) -> u64 {
     struct Fnv(u64);
@@ -277,8 +279,6 @@ pub fn scene_data_hash(v: &ember_kernel::scene::SceneView<'_>) -> u64 {
     h.len(v.emitter_triangles.len());
     h.words(v.emitter_triangles.iter().copied());
     h.floats(v.emitter_cdf.iter().copied());
-    h.len(v.bvh.prim_order().len());
-    h.words(v.bvh.prim_order().iter().copied());
     let t = &v.textures;
     h.len(t.uvs.len());
     h.floats(t.uvs.iter().flat_map(|uv| uv.to_array()));
