@@ -420,6 +420,15 @@ impl WideBvh<'_> {
             while entered != 0 {
                 let lane = entered.trailing_zeros() as usize % WIDTH;
                 entered &= entered - 1;
+                // An any-hit query tests a leaf as soon as it enters its box: it may end the
+                // walk there, and costs no stack traffic.
+                if ANY_HIT && node.is_leaf(lane) {
+                    let first = node.child[lane] & !WIDE_LEAF;
+                    if leaf(first, u32::from(node.count[lane]), t_max).is_some() {
+                        return Ok(true);
+                    }
+                    continue;
+                }
                 let entry_t = t0[lane];
                 let reference = if node.is_leaf(lane) {
                     WIDE_LEAF | (index * WIDTH + lane) as u32
