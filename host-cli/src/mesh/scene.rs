@@ -51,7 +51,8 @@ pub struct SceneData {
     pub emitter_cdf: Vec<f32>,
     /// Number of emitters (objects whose first face is emissive).
     pub emitter_count: usize,
-    /// The wide BVH (4 lanes, 8 in AVX builds) the renderer traces (the binary build is collapsed and dropped).
+    /// The wide BVH (4 lanes, 8 in AVX builds) the renderer traces (the binary build is
+    /// collapsed and dropped).
     pub bvh_nodes: Vec<WideNode>,
     /// The wide tree's primitive order, each leaf starting at a multiple of four
     /// ([`bvh::align_leaves`]; padded with repeats of the leaf's last triangle).

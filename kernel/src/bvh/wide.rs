@@ -153,7 +153,7 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
             let mut largest = f32::NEG_INFINITY;
             for (l, &b) in lanes[..n].iter().enumerate() {
                 let node = &binary[b as usize];
-                let area = half_area(node);
+                let area = node.bounds().surface_area();
                 if !node.is_leaf() && (open.is_none() || area > largest) {
                     (open, largest) = (Some(l), area);
                 }
@@ -191,12 +191,6 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
         next += 1;
     }
     Ok(used)
-}
-
-/// Half the surface area of a node's box (NaN for an empty box, which no area exceeds).
-fn half_area(node: &BvhNode) -> f32 {
-    let [x, y, z] = core::array::from_fn(|a| node.max[a] - node.min[a]);
-    x * y + y * z + z * x
 }
 
 fn leaf_reference(leaf: &BvhNode) -> Result<u32, BvhError> {
