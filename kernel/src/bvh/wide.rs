@@ -403,6 +403,15 @@ impl WideBvh<'_> {
             }
             let node = &self.nodes[index];
             let (t0, bits) = slab.hit(node, t_max);
+            // One interior child entered (the common case deep in the tree): go down to it
+            // without the stack.
+            if bits != 0 && bits & (bits - 1) == 0 {
+                let lane = bits.trailing_zeros() as usize % WIDTH;
+                if !node.is_leaf(lane) {
+                    index = node.child[lane] as usize;
+                    continue;
+                }
+            }
             // Push the children the ray enters, farthest first, so that the nearest is taken
             // next (insertion by entry distance; the closest hit does not depend on the order,
             // `bvh::closest`, only the work does).
@@ -514,13 +523,13 @@ impl Slab {
                 (&node.lo[axis], &node.hi[axis])
             };
             let tn = Lanes::load(near).sub(self.o[axis]).mul(self.inv_d[axis]);
-            let tf = Lanes::load(far)
-                .sub(self.o[axis])
-                .mul(self.inv_d[axis])
-                .mul(scale);
+            let tf = Lanes::load(far).sub(self.o[axis]).mul(self.inv_d[axis]);
             t0 = tn.max_ignoring_nan(t0);
             t1 = tf.min_ignoring_nan(t1);
         }
-        (t0.to_array(), Lanes::entered(t0, t1, t_max))
+        // Scaling the smallest far distance is scaling each one and taking the smallest:
+        // rounding is monotonic, so `min(a·s, b·s) = min(a, b)·s` for `s > 0`, NaN ignored
+        // alike (`Aabb::hit` scales after its minimum too).
+        (t0.to_array(), Lanes::entered(t0, t1.mul(scale), t_max))
     }
 }

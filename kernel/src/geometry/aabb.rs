@@ -92,13 +92,15 @@ impl Aabb {
         let (y0, y1) = sel(self.min.y, self.max.y, neg[1]);
         let (z0, z1) = sel(self.min.z, self.max.z, neg[2]);
         let tx0 = (x0 - o.x) * inv_d.x;
-        let tx1 = (x1 - o.x) * inv_d.x * scale;
+        let tx1 = (x1 - o.x) * inv_d.x;
         let ty0 = (y0 - o.y) * inv_d.y;
-        let ty1 = (y1 - o.y) * inv_d.y * scale;
+        let ty1 = (y1 - o.y) * inv_d.y;
         let tz0 = (z0 - o.z) * inv_d.z;
-        let tz1 = (z1 - o.z) * inv_d.z * scale;
+        let tz1 = (z1 - o.z) * inv_d.z;
         let t0 = tx0.max(ty0).max(tz0);
-        let t1 = tx1.min(ty1).min(tz1);
+        // pbrt scales each far distance; rounding is monotonic, so scaling their minimum once
+        // gives the same number (`min(a·s, b·s) = min(a, b)·s` for `s > 0`, NaN ignored alike).
+        let t1 = tx1.min(ty1).min(tz1) * scale;
         // t0 and t1 are NaN only if every slab produced a NaN; then nothing constrains.
         let entered = t0.partial_cmp(&t1) != Some(core::cmp::Ordering::Greater);
         entered & (t0 < t_max || t0.is_nan()) & (t1 > 0.0 || t1.is_nan())
