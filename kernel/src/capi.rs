@@ -7,11 +7,14 @@
 //!    per triangle and the materials ([`EmberMaterial`]); when a material is textured, also the
 //!    per-vertex texture coordinates (`float[2]`), the textures ([`EmberTexture`]) and their
 //!    texels (`float[3]`).
-//! 2. [`ember_bvh_capacity`] says how many nodes and indices the BVH needs for its triangle
-//!    count; [`ember_build_bvh`] builds it into the engine's buffers.
+//! 2. [`ember_accel_capacity`] says how many bytes the acceleration structure (a wide BVH with
+//!    the triangles of each leaf beside it) and its build scratch need for the triangle count;
+//!    [`ember_build_accel`] builds it into the engine's buffers. (The binary BVH of
+//!    [`ember_bvh_capacity`] and [`ember_build_bvh`] gives the same images, bit for bit, at
+//!    about half the speed; it is there for engines that keep their own tree in that form.)
 //! 3. [`ember_build_emitters`] writes the emitter table (every emissive triangle with positive
 //!    area, chosen in proportion to its area; call it with capacity 0 to learn the size).
-//! 4. Point the scene's `bvh_*` and `emitter_*` fields at those buffers; then
+//! 4. Point the scene's `accel` (or `bvh_*`) and `emitter_*` fields at those buffers; then
 //!    [`ember_render_tile`] renders any rectangle of the image and [`ember_bake_vertices`] bakes
 //!    the view-independent radiance at a list of surface points, into the engine's output
 //!    arrays.
@@ -46,7 +49,7 @@
 //! textures beyond those.
 //!
 //! A thread that calls ember needs [`EMBER_STACK_BYTES`] (256 KiB) of stack. Measured: every
-//! rendering call, whatever the integrator, overwrites 83,848 bytes of a painted 256 KiB
+//! rendering call, whatever the integrator, overwrites 83,456 bytes of a painted 256 KiB
 //! pthread stack (`tests/capi/cornell.c` runs its rendering threads on such stacks, x86_64
 //! Linux, release build, glibc; an idle thread overwrites 4,464 of them): about 80 KiB, the
 //! material table and the texel statistics while the materials are converted being most of
@@ -88,7 +91,7 @@
 //!
 //! # ABI version
 //!
-//! This is version 4 ([`EMBER_ABI_VERSION`]) of the C API. Callers check at start-up that the
+//! This is version 5 ([`EMBER_ABI_VERSION`]) of the C API. Callers check at start-up that the
 //! library they linked implements the header they compiled with,
 //!
 //! ```c
@@ -117,6 +120,12 @@
 //! integrator's default sampler, as the command line does (Owen-scrambled Sobol' points for
 //! the path tracers and BDPT), so a version 3 program that zeroes its settings renders, once
 //! recompiled, `ember render`'s images rather than version 3's.
+//!
+//! Version 5 appended [`EmberScene::accel`] and [`EmberScene::accel_bytes`] (the wide
+//! acceleration structure of [`ember_build_accel`], sized by [`ember_accel_capacity`]), so
+//! `sizeof(EmberScene)` grew from 160 to 176 bytes on 64-bit targets: version 4 scenes are
+//! refused by their size. A version 4 program that zeroes its scene leaves `accel` null once
+//! recompiled and renders with its binary BVH, the same images as before.
 //!
 //! Which structs carry the field (since version 2), and why:
 //! - [`EmberMaterial`] changed (new kinds, texture ids, IOR, tint, roughness). A version 1
@@ -162,9 +171,13 @@
 // Every `unsafe` block states why it is sound; clippy enforces the comment.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
-use crate::bvh::{self, Bvh, BvhNode, TRAVERSAL_STACK};
+use crate::bvh::{
+    self, Bvh, BvhNode, SceneBvh, WideBvh, WideNode, TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH,
+    WIDTH,
+};
 use crate::camera::Camera;
 use crate::emitter::{build_emitter_table, EmitterTableError};
+use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::integrator::bdpt::{self, Vertex, CAMERA_PATH_VERTICES, LIGHT_PATH_VERTICES};
 use crate::integrator::{
     bake_vertex, render_pixel, BakeEstimator, BakePoint, BdptScratch, BdptSink, Integrator,
@@ -184,8 +197,9 @@ use glam::{Vec2, Vec3};
 /// library it runs with. Version 2 added `struct_size` as the first field of every struct the
 /// caller fills, conductor and dielectric materials, and textures; version 3 the light tracer,
 /// BDPT and their splat buffers (`ember_render_tile_splats`; no struct changed); version 4
-/// [`EmberSettings::sampler`] (the Owen-scrambled Sobol' sampler, the default).
-pub const EMBER_ABI_VERSION: u32 = 4;
+/// [`EmberSettings::sampler`] (the Owen-scrambled Sobol' sampler, the default); version 5
+/// [`EmberScene::accel`] (the wide acceleration structure of `ember_build_accel`).
+pub const EMBER_ABI_VERSION: u32 = 5;
 
 /// Success.
 pub const EMBER_OK: i32 = 0;
@@ -372,6 +386,12 @@ pub struct EmberScene {
     pub bvh_node_count: u32,
     /// `triangle_count` triangle indices in BVH leaf order, from `ember_build_bvh`.
     pub bvh_indices: *const u32,
+    /// The acceleration structure from `ember_build_accel` (its first `*out_used_bytes` bytes,
+    /// aligned to `EMBER_ACCEL_ALIGN`), or null. When it is not null the scene is traced with
+    /// it and the `bvh_*` fields are not read. Since version 5.
+    pub accel: *const c_void,
+    /// Bytes readable at `accel` (at least the size `ember_build_accel` reported).
+    pub accel_bytes: usize,
 }
 
 /// A pinhole camera (TinyRender's): right-handed look-at, full vertical field of view in
@@ -844,6 +864,170 @@ fn check_bvh(nodes: &[BvhNode], prims: usize) -> bool {
     }
 }
 
+/// Alignment, in bytes, of the acceleration structure `ember_build_accel` writes and of its
+/// build scratch (`aligned_alloc(EMBER_ACCEL_ALIGN, bytes)`, `posix_memalign`; `malloc` memory
+/// is not aligned enough). Since version 5.
+pub const EMBER_ACCEL_ALIGN: usize = 64;
+
+/// "EMBA": the first bytes of an acceleration structure.
+const ACCEL_MAGIC: u32 = u32::from_le_bytes(*b"EMBA");
+/// The version of its layout (header, then nodes, leaf order and triangle groups).
+const ACCEL_LAYOUT: u32 = 1;
+/// The header's bytes, padded so that the nodes that follow are aligned.
+const ACCEL_HEADER_BYTES: usize = EMBER_ACCEL_ALIGN;
+
+const _: () = {
+    assert!(core::mem::align_of::<WideNode>() <= EMBER_ACCEL_ALIGN);
+    assert!(core::mem::size_of::<WideNode>().is_multiple_of(EMBER_ACCEL_ALIGN));
+    assert!(core::mem::size_of::<AccelHeader>() <= ACCEL_HEADER_BYTES);
+    assert!(core::mem::align_of::<BvhNode>() <= EMBER_ACCEL_ALIGN);
+};
+
+/// The start of an acceleration structure. Its counts place the sections ([`AccelLayout`]);
+/// its width is the node width of the library that wrote it (4, or 8 in AVX builds), which a
+/// library of another width refuses.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct AccelHeader {
+    magic: u32,
+    layout: u32,
+    width: u32,
+    group_width: u32,
+    node_count: u32,
+    order_len: u32,
+    group_count: u32,
+    triangle_count: u32,
+}
+
+/// Byte offsets of an acceleration structure's sections: the header at 0, then `WideNode`s,
+/// the leaf-order triangle indices (`u32`) and the `TriangleGroup`s, each aligned for its type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct AccelLayout {
+    nodes: usize,
+    order: usize,
+    groups: usize,
+    end: usize,
+}
+
+impl AccelLayout {
+    /// The layout of `node_count` nodes, `order_len` indices and `group_count` groups, or `None`
+    /// if it does not fit in `isize`.
+    fn new(node_count: usize, order_len: usize, group_count: usize) -> Option<Self> {
+        use core::mem::{align_of, size_of};
+        let nodes = ACCEL_HEADER_BYTES;
+        let order = nodes.checked_add(node_count.checked_mul(size_of::<WideNode>())?)?;
+        let order_end = order.checked_add(order_len.checked_mul(size_of::<u32>())?)?;
+        let groups = order_end.checked_next_multiple_of(align_of::<TriangleGroup>())?;
+        let end = groups.checked_add(group_count.checked_mul(size_of::<TriangleGroup>())?)?;
+        (end <= isize::MAX as usize).then_some(Self {
+            nodes,
+            order,
+            groups,
+            end,
+        })
+    }
+}
+
+/// Bytes of the acceleration structure and of the build scratch for `triangles` triangles:
+/// room for the largest wide tree a binary tree over them can collapse into, each leaf padded
+/// to whole groups (at most four slots per triangle), and for the binary tree and its order.
+fn accel_capacity(triangles: usize) -> Option<(usize, usize)> {
+    let binary = bvh::max_nodes(triangles);
+    let wide = bvh::max_wide_nodes(binary);
+    let slots = triangles.checked_mul(GROUP_WIDTH)?;
+    let accel = AccelLayout::new(wide, slots, slots.div_ceil(GROUP_WIDTH))?.end;
+    let scratch = binary
+        .checked_mul(core::mem::size_of::<BvhNode>())?
+        .checked_add(triangles.checked_mul(core::mem::size_of::<u32>())?)?;
+    Some((accel, scratch))
+}
+
+/// Checks that `nodes` is a wide tree as `bvh::collapse` writes it, which traversal can walk:
+/// breadth-first, every interior child numbered in the order the parents name them (so each
+/// node has one parent, after it), no level deeper than [`WIDE_MAX_DEPTH`] (the traversal
+/// stack's bound), every leaf inside the `prims` entries of the leaf order. Then traversal
+/// neither loops nor indexes out of bounds.
+fn check_wide(nodes: &[WideNode], prims: usize) -> bool {
+    // The next interior child's index; nodes before `level_end` are at depth `depth` or less.
+    let (mut next, mut level_end, mut depth) = (1usize, 1usize, 1usize);
+    for (i, node) in nodes.iter().enumerate() {
+        if i == level_end {
+            depth += 1;
+            level_end = next;
+        }
+        for lane in 0..WIDTH {
+            let child = node.child[lane];
+            if child & WIDE_LEAF != 0 {
+                let first = (child & !WIDE_LEAF) as usize;
+                if first + usize::from(node.count[lane]) > prims {
+                    return false;
+                }
+            } else {
+                if child as usize != next || depth >= WIDE_MAX_DEPTH {
+                    return false;
+                }
+                next += 1;
+            }
+        }
+    }
+    !nodes.is_empty() && next == nodes.len()
+}
+
+/// The wide tree of `scene.accel`, checked (the leaf order's triangle ids and the groups'
+/// vertices are checked with the rest of the scene, by `SceneView::validate`).
+///
+/// # Safety
+/// `scene.accel` must be null or valid for reads of `scene.accel_bytes` bytes that nobody
+/// writes during `'a`.
+unsafe fn accel_view<'a>(scene: &EmberScene) -> Result<WideBvh<'a>, i32> {
+    let base = scene.accel.cast::<u8>();
+    if base.is_null() {
+        return Err(EMBER_ERROR_NULL_POINTER);
+    }
+    if base.align_offset(EMBER_ACCEL_ALIGN) != 0 || scene.accel_bytes < ACCEL_HEADER_BYTES {
+        return Err(EMBER_ERROR_SIZE);
+    }
+    // SAFETY: `base` is aligned (for `AccelHeader` too) and the caller guarantees the header's
+    // bytes readable (checked: at least `ACCEL_HEADER_BYTES`); any bits are valid `u32`s.
+    let h = unsafe { base.cast::<AccelHeader>().read() };
+    if h.magic != ACCEL_MAGIC
+        || h.layout != ACCEL_LAYOUT
+        || h.width as usize != WIDTH
+        || h.group_width as usize != GROUP_WIDTH
+        || h.triangle_count != scene.triangle_count
+        || h.group_count as usize != (h.order_len as usize).div_ceil(GROUP_WIDTH)
+    {
+        return Err(EMBER_ERROR_INVALID_SCENE);
+    }
+    let (nn, no, ng) = (
+        h.node_count as usize,
+        h.order_len as usize,
+        h.group_count as usize,
+    );
+    let layout = AccelLayout::new(nn, no, ng).ok_or(EMBER_ERROR_SIZE)?;
+    if layout.end > scene.accel_bytes {
+        return Err(EMBER_ERROR_SIZE);
+    }
+    // SAFETY: the sections lie inside the caller's `accel_bytes` readable bytes (checked),
+    // each at an offset aligned for its type from an `EMBER_ACCEL_ALIGN`-aligned base; every
+    // bit pattern is a valid `WideNode` (floats and integers), `u32` and `TriangleGroup`.
+    let (nodes, prim_order, leaf_groups) = unsafe {
+        (
+            slice(base.add(layout.nodes).cast::<WideNode>(), nn)?,
+            slice(base.add(layout.order).cast::<u32>(), no)?,
+            slice(base.add(layout.groups).cast::<TriangleGroup>(), ng)?,
+        )
+    };
+    if !check_wide(nodes, prim_order.len()) {
+        return Err(EMBER_ERROR_INVALID_SCENE);
+    }
+    Ok(WideBvh {
+        nodes,
+        prim_order,
+        leaf_groups,
+    })
+}
+
 /// Converts the materials into `table` and checks the whole scene; returns the kernel's view.
 ///
 /// # Safety
@@ -863,25 +1047,34 @@ unsafe fn scene_view<'a>(
         *out = convert_material(m, &textures, &mut cache)?;
     }
     let ne = scene.emitter_count as usize;
-    // SAFETY: forwarded contract: each pointer is valid for its count; `EmberBvhNode` has the
-    // layout of `BvhNode` (asserted above), so its array is an array of `BvhNode`.
-    let (emitter_triangles, emitter_cdf, nodes, prim_order) = unsafe {
+    // SAFETY: forwarded contract: each pointer is valid for its count.
+    let (emitter_triangles, emitter_cdf) = unsafe {
         (
             slice(scene.emitter_triangles, ne)?,
             slice(scene.emitter_cdf, ne)?,
-            slice(
-                scene.bvh_nodes.cast::<BvhNode>(),
-                scene.bvh_node_count as usize,
-            )?,
-            slice(scene.bvh_indices, g.triangles.len())?,
         )
     };
-    let nodes = if g.triangles.is_empty() {
-        &EMPTY_BVH[..]
-    } else if check_bvh(nodes, prim_order.len()) {
-        nodes
-    } else {
-        return Err(EMBER_ERROR_INVALID_SCENE);
+    // SAFETY: forwarded contract: `accel` valid for `accel_bytes` bytes, or the BVH arrays for
+    // their counts; `EmberBvhNode` has the layout of `BvhNode` (asserted above), so its array
+    // is an array of `BvhNode`.
+    let bvh: SceneBvh<'a> = unsafe {
+        if scene.accel.is_null() {
+            let nodes = slice(
+                scene.bvh_nodes.cast::<BvhNode>(),
+                scene.bvh_node_count as usize,
+            )?;
+            let prim_order = slice(scene.bvh_indices, g.triangles.len())?;
+            let nodes = if g.triangles.is_empty() {
+                &EMPTY_BVH[..]
+            } else if check_bvh(nodes, prim_order.len()) {
+                nodes
+            } else {
+                return Err(EMBER_ERROR_INVALID_SCENE);
+            };
+            Bvh { nodes, prim_order }.into()
+        } else {
+            accel_view(scene)?.into()
+        }
     };
     let view = SceneView {
         positions: g.positions,
@@ -891,7 +1084,7 @@ unsafe fn scene_view<'a>(
         materials: &table[..g.materials.len()],
         emitter_triangles,
         emitter_cdf,
-        bvh: Bvh { nodes, prim_order }.into(),
+        bvh,
         textures,
     };
     view.validate().map_err(|e| match e {
@@ -1017,6 +1210,189 @@ unsafe fn ember_build_bvh_impl(
     };
     // SAFETY: the caller guarantees the pointer is null or writable.
     unsafe { store(out_node_count, used as u32) };
+    Ok(())
+}
+
+/// Sizes for [`ember_build_accel`] over `triangle_count` triangles: `*out_accel_bytes` for the
+/// acceleration structure and `*out_scratch_bytes` for the scratch of its build, both to be
+/// aligned to `EMBER_ACCEL_ALIGN`. These are upper bounds; the build reports what it used, and
+/// the structure is position-independent, so its used bytes may be copied to a smaller aligned
+/// buffer (the scratch may be freed after the build). Any out pointer may be null. Since
+/// version 5.
+///
+/// # Safety
+/// Each out pointer must be null or valid for writing a `size_t`.
+#[no_mangle]
+pub unsafe extern "C" fn ember_accel_capacity(
+    triangle_count: u32,
+    out_accel_bytes: *mut usize,
+    out_scratch_bytes: *mut usize,
+) -> i32 {
+    let Some((accel, scratch)) = accel_capacity(triangle_count as usize) else {
+        return EMBER_ERROR_SIZE;
+    };
+    // SAFETY: the caller guarantees the pointers are null or writable.
+    unsafe {
+        store(out_accel_bytes, accel);
+        store(out_scratch_bytes, scratch);
+    }
+    EMBER_OK
+}
+
+/// Builds the acceleration structure the command-line renderer traces: the BVH of
+/// `ember_build_bvh` (binned SAH, built in `scratch`) collapsed into wide nodes (4 lanes, 8 in
+/// AVX builds of the library), nearest child first, with the triangles of each leaf stored
+/// beside it in SIMD-width groups. Tracing with it (`EmberScene::accel`) gives the same images
+/// as the binary BVH, bit for bit, about twice as fast. `accel` and `scratch` must be aligned
+/// to `EMBER_ACCEL_ALIGN` and hold at least the bytes `ember_accel_capacity` gives
+/// (`EMBER_ERROR_SIZE` otherwise); `*out_used_bytes` receives the bytes of `accel` written,
+/// which are all a renderer reads and which may be copied anywhere aligned. The bytes depend on
+/// the geometry and on the library's node width: a library of another width (or ABI version)
+/// refuses them with `EMBER_ERROR_INVALID_SCENE`, so rebuild rather than ship them. Reads only
+/// the positions and triangles. Since version 5.
+///
+/// # Safety
+/// `scene` must point to a valid [`EmberScene`] whose position and triangle arrays are valid
+/// for their counts; `accel` and `scratch` must be writable for their byte counts and overlap
+/// nothing else; `out_used_bytes` must be null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ember_build_accel(
+    scene: *const EmberScene,
+    accel: *mut c_void,
+    accel_bytes: usize,
+    scratch: *mut c_void,
+    scratch_bytes: usize,
+    out_used_bytes: *mut usize,
+) -> i32 {
+    // SAFETY: the caller upholds the contract documented above.
+    status(unsafe {
+        ember_build_accel_impl(
+            scene,
+            accel.cast::<u8>(),
+            accel_bytes,
+            scratch.cast::<u8>(),
+            scratch_bytes,
+            out_used_bytes,
+        )
+    })
+}
+
+/// Zeroes `bytes` bytes at `ptr` and borrows them as `len` elements of `T` from offset `at`.
+///
+/// # Safety
+/// `ptr` must be writable for `at + len · size_of::<T>()` bytes that nothing else accesses
+/// during `'a`, `ptr + at` aligned for `T`, and all-zero bytes a valid `T`.
+unsafe fn zeroed_slice<'a, T>(ptr: *mut u8, at: usize, len: usize) -> Result<&'a mut [T], i32> {
+    // SAFETY: the caller's contract: the bytes are writable and exclusively ours.
+    unsafe {
+        let start = ptr.add(at);
+        core::ptr::write_bytes(start, 0, len * core::mem::size_of::<T>());
+        slice_mut(start.cast::<T>(), len)
+    }
+}
+
+/// The body of [`ember_build_accel`].
+///
+/// # Safety
+/// As for [`ember_build_accel`].
+unsafe fn ember_build_accel_impl(
+    scene: *const EmberScene,
+    accel: *mut u8,
+    accel_bytes: usize,
+    scratch: *mut u8,
+    scratch_bytes: usize,
+    out_used_bytes: *mut usize,
+) -> Result<(), i32> {
+    // SAFETY: the caller's contract (the position and triangle arrays valid for their counts);
+    // `Vec3` has the layout of `[f32; 3]` (asserted above).
+    let (positions, triangles) = unsafe {
+        let scene = record(scene)?;
+        (
+            slice(scene.positions.cast::<Vec3>(), scene.vertex_count as usize)?,
+            slice(scene.triangles, scene.triangle_count as usize)?,
+        )
+    };
+    let nt = triangles.len();
+    let (accel_needed, scratch_needed) = accel_capacity(nt).ok_or(EMBER_ERROR_SIZE)?;
+    if accel.is_null() || scratch.is_null() {
+        return Err(EMBER_ERROR_NULL_POINTER);
+    }
+    if accel_bytes < accel_needed
+        || scratch_bytes < scratch_needed
+        || accel.align_offset(EMBER_ACCEL_ALIGN) != 0
+        || scratch.align_offset(EMBER_ACCEL_ALIGN) != 0
+    {
+        return Err(EMBER_ERROR_SIZE);
+    }
+    let binary_cap = bvh::max_nodes(nt);
+    // SAFETY: the scratch is writable for `scratch_needed` bytes, exclusively (the caller's
+    // contract): the binary nodes from offset 0 (aligned: `EMBER_ACCEL_ALIGN` is at least
+    // their alignment), then the order (a multiple of 32 bytes on, aligned for `u32`); zero
+    // bytes are valid nodes and indices.
+    let (binary, order) = unsafe {
+        let binary = zeroed_slice::<BvhNode>(scratch, 0, binary_cap)?;
+        let at = binary_cap * core::mem::size_of::<BvhNode>();
+        (binary, zeroed_slice::<u32>(scratch, at, nt)?)
+    };
+    let build_error = |e: bvh::BvhError| match e {
+        bvh::BvhError::VertexIndex { .. } => EMBER_ERROR_INVALID_SCENE,
+        _ => EMBER_ERROR_SIZE,
+    };
+    let node_count = if nt == 0 {
+        // No triangles: one node with no lanes, which no ray enters.
+        // SAFETY: one node fits (`accel_needed` counts at least one).
+        let wide = unsafe { zeroed_slice::<WideNode>(accel, ACCEL_HEADER_BYTES, 1)? };
+        wide[0] = WideNode::default();
+        1
+    } else {
+        let used =
+            bvh::build_triangles(positions, triangles, binary, order).map_err(build_error)?;
+        let wide_cap = bvh::max_wide_nodes(used);
+        // SAFETY: `accel` is writable for `accel_needed` bytes, exclusively, which hold the
+        // header and `max_wide_nodes(max_nodes(nt))` ≥ `wide_cap` nodes after it (aligned).
+        let wide = unsafe { zeroed_slice::<WideNode>(accel, ACCEL_HEADER_BYTES, wide_cap)? };
+        bvh::collapse(&binary[..used], wide).map_err(build_error)?
+    };
+    // SAFETY: as above; these are the nodes just written (a prefix of the zeroed ones).
+    let nodes = unsafe { slice_mut(accel.add(ACCEL_HEADER_BYTES).cast::<WideNode>(), node_count)? };
+    let order_len = bvh::aligned_order_len(nodes);
+    let group_count = order_len.div_ceil(GROUP_WIDTH);
+    let layout = AccelLayout::new(node_count, order_len, group_count).ok_or(EMBER_ERROR_SIZE)?;
+    if layout.end > accel_bytes {
+        return Err(EMBER_ERROR_SIZE);
+    }
+    // SAFETY: the order and the groups lie after the nodes and inside `accel_bytes` (checked),
+    // at offsets aligned for their types; the padding between them is zeroed with them.
+    let (aligned, groups) = unsafe {
+        let aligned = zeroed_slice::<u32>(accel, layout.order, order_len)?;
+        let pad = layout.groups - (layout.order + order_len * 4);
+        core::ptr::write_bytes(accel.add(layout.groups - pad), 0, pad);
+        (
+            aligned,
+            zeroed_slice::<TriangleGroup>(accel, layout.groups, group_count)?,
+        )
+    };
+    if nt > 0 {
+        bvh::align_leaves(nodes, order, aligned).map_err(build_error)?;
+        bvh::gather_leaf_groups(positions, triangles, aligned, groups).map_err(build_error)?;
+    }
+    let header = AccelHeader {
+        magic: ACCEL_MAGIC,
+        layout: ACCEL_LAYOUT,
+        width: WIDTH as u32,
+        group_width: GROUP_WIDTH as u32,
+        node_count: u32::try_from(node_count).map_err(|_| EMBER_ERROR_SIZE)?,
+        order_len: u32::try_from(order_len).map_err(|_| EMBER_ERROR_SIZE)?,
+        group_count: u32::try_from(group_count).map_err(|_| EMBER_ERROR_SIZE)?,
+        triangle_count: nt as u32,
+    };
+    // SAFETY: the header's bytes are the first `ACCEL_HEADER_BYTES` of `accel` (writable,
+    // aligned); the padding after it is zeroed so that the output is a function of the input.
+    unsafe {
+        core::ptr::write_bytes(accel, 0, ACCEL_HEADER_BYTES);
+        accel.cast::<AccelHeader>().write(header);
+        store(out_used_bytes, layout.end);
+    }
     Ok(())
 }
 
@@ -1856,6 +2232,8 @@ mod tests {
             bvh_nodes: null(),
             bvh_node_count: 0,
             bvh_indices: null(),
+            accel: null(),
+            accel_bytes: 0,
         }
     }
 
@@ -2230,7 +2608,7 @@ mod tests {
 
     #[test]
     fn old_layout_records_are_refused_not_misread() {
-        assert_eq!((ember_abi_version(), EMBER_ABI_VERSION), (4, 4));
+        assert_eq!((ember_abi_version(), EMBER_ABI_VERSION), (5, 5));
         let v1_materials = [
             MaterialV1 {
                 kind: EMBER_MATERIAL_DIFFUSE,
@@ -2323,7 +2701,18 @@ mod tests {
             struct_size: 0,
             ..good
         };
-        for scene in [old_scene, core::ptr::addr_of!(zeroed)] {
+        // A version 4 scene: the same fields without `accel` and `accel_bytes`.
+        #[cfg(target_pointer_width = "64")]
+        assert_eq!(size_of::<EmberScene>(), 176);
+        let v4_sized = EmberScene {
+            struct_size: size_of::<EmberScene>() as u32 - 16,
+            ..good
+        };
+        for scene in [
+            old_scene,
+            core::ptr::addr_of!(zeroed),
+            core::ptr::addr_of!(v4_sized),
+        ] {
             assert_eq!(unsafe { ember_scene_check(scene) }, EMBER_ERROR_ABI);
             let r = unsafe {
                 ember_build_bvh(
@@ -3440,5 +3829,516 @@ mod tests {
         assert_eq!(place[..6], sums, "refused calls write nothing");
         assert_eq!(resolve(base, 2, base), EMBER_OK);
         assert_eq!(place[..6], out, "in place");
+    }
+    /// Memory aligned to `EMBER_ACCEL_ALIGN`, as `aligned_alloc` gives C callers.
+    #[derive(Clone, Copy)]
+    #[repr(C, align(64))]
+    struct Block([u8; EMBER_ACCEL_ALIGN]);
+
+    fn blocks(bytes: usize) -> std::vec::Vec<Block> {
+        std::vec![Block([0xA5; EMBER_ACCEL_ALIGN]); bytes.div_ceil(EMBER_ACCEL_ALIGN)]
+    }
+
+    /// A lit scene of many triangles, so that the trees have interior nodes: a floor, a light
+    /// above it and a soup of small triangles between them, each of the two materials.
+    struct Soup {
+        positions: std::vec::Vec<[f32; 3]>,
+        normals: std::vec::Vec<[f32; 3]>,
+        triangles: std::vec::Vec<[u32; 3]>,
+        ids: std::vec::Vec<u32>,
+    }
+
+    impl Soup {
+        fn new(count: usize) -> Self {
+            let mut state = 0x9E37_79B9_7F4A_7C15u64;
+            let mut r = move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            };
+            let mut soup = Self {
+                positions: std::vec![
+                    [-2.0, 0.0, -2.0],
+                    [2.0, 0.0, -2.0],
+                    [2.0, 0.0, 2.0],
+                    [-2.0, 0.0, 2.0],
+                    [-0.5, 2.0, -0.5],
+                    [0.5, 2.0, -0.5],
+                    [0.5, 2.0, 0.5],
+                    [-0.5, 2.0, 0.5],
+                ],
+                normals: std::vec![[0.0, 1.0, 0.0]; 4],
+                triangles: std::vec![[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]],
+                ids: std::vec![0, 0, 1, 1],
+            };
+            soup.normals.extend([[0.0, -1.0, 0.0]; 4]);
+            for i in 0..count {
+                let c = [4.0 * r() - 2.0, 1.8 * r() + 0.05, 4.0 * r() - 2.0];
+                let base = soup.positions.len() as u32;
+                for _ in 0..3 {
+                    let p = [0.0, 1.0, 2.0].map(|_| 0.3 * r() - 0.15);
+                    soup.positions.push([c[0] + p[0], c[1] + p[1], c[2] + p[2]]);
+                    soup.normals.push([r() - 0.5, r() - 0.5, r() - 0.5]);
+                }
+                soup.triangles.push([base, base + 1, base + 2]);
+                soup.ids.push((i % 7 == 0) as u32);
+            }
+            soup
+        }
+
+        fn scene(&self) -> EmberScene {
+            EmberScene {
+                positions: self.positions.as_ptr(),
+                normals: self.normals.as_ptr(),
+                vertex_count: self.positions.len() as u32,
+                triangles: self.triangles.as_ptr(),
+                triangle_materials: self.ids.as_ptr(),
+                triangle_count: self.triangles.len() as u32,
+                ..geometry_only()
+            }
+        }
+    }
+
+    /// Builds the acceleration structure of `scene` in fresh buffers; returns them and the bytes
+    /// used.
+    fn build_accel(scene: &EmberScene) -> (std::vec::Vec<Block>, usize) {
+        let (mut accel_bytes, mut scratch_bytes) = (0, 0);
+        // SAFETY: live locals.
+        let r = unsafe {
+            ember_accel_capacity(scene.triangle_count, &mut accel_bytes, &mut scratch_bytes)
+        };
+        assert_eq!(r, EMBER_OK);
+        let (mut accel, mut scratch) = (blocks(accel_bytes), blocks(scratch_bytes));
+        let mut used = 0;
+        // SAFETY: buffers of the sizes asked for, aligned.
+        let r = unsafe {
+            ember_build_accel(
+                scene,
+                accel.as_mut_ptr().cast(),
+                accel_bytes,
+                scratch.as_mut_ptr().cast(),
+                scratch_bytes,
+                &mut used,
+            )
+        };
+        assert_eq!(r, EMBER_OK);
+        assert!(ACCEL_HEADER_BYTES < used && used <= accel_bytes);
+        (accel, used)
+    }
+
+    /// Renders a 12 × 9 image of `scene` with each path tracer and bakes 16 points; returns all
+    /// the numbers.
+    fn render_all(scene: &EmberScene) -> std::vec::Vec<f32> {
+        let camera = EmberCamera {
+            struct_size: size_of::<EmberCamera>() as u32,
+            eye: [0.3, 1.2, 3.5],
+            at: [0.0, 0.8, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_degrees: 50.0,
+            width: 12,
+            height: 9,
+        };
+        let mut all = std::vec::Vec::new();
+        for integrator in [
+            EMBER_INTEGRATOR_PATH_IMPLICIT,
+            EMBER_INTEGRATOR_PATH_EXPLICIT,
+            EMBER_INTEGRATOR_PATH_MIS,
+        ] {
+            let settings = EmberSettings {
+                struct_size: size_of::<EmberSettings>() as u32,
+                integrator,
+                max_depth: -1,
+                rr_depth: 2,
+                rr_prob: 0.8,
+                spp: 3,
+                bake_estimator: EMBER_BAKE_MIS,
+                seed: 11,
+                sampler: EMBER_SAMPLER_DEFAULT,
+            };
+            let mut out = [-1.0f32; 3 * 12 * 9];
+            // SAFETY: live locals; `out` holds the tile.
+            let r = unsafe {
+                ember_render_tile(scene, &camera, &settings, 0, 0, 12, 9, out.as_mut_ptr())
+            };
+            assert_eq!(r, EMBER_OK);
+            all.extend_from_slice(&out);
+            if integrator == EMBER_INTEGRATOR_PATH_MIS {
+                let points: std::vec::Vec<EmberBakePoint> = (0..16)
+                    .map(|i| EmberBakePoint {
+                        struct_size: size_of::<EmberBakePoint>() as u32,
+                        p: [0.2 * i as f32 - 1.5, 0.0, 0.1 * i as f32 - 0.8],
+                        n: [0.0, 1.0, 0.0],
+                        uv: [0.0; 2],
+                        material: 0,
+                        key: i,
+                    })
+                    .collect();
+                let mut baked = [-1.0f32; 3 * 16];
+                // SAFETY: live locals; 16 points, 48 outputs.
+                let r = unsafe {
+                    ember_bake_vertices(scene, &settings, points.as_ptr(), 16, baked.as_mut_ptr())
+                };
+                assert_eq!(r, EMBER_OK);
+                all.extend_from_slice(&baked);
+            }
+        }
+        assert!(all.iter().all(|v| v.is_finite() && *v >= 0.0));
+        all
+    }
+
+    /// `scene` with its emitter table and binary BVH, in the given buffers.
+    fn with_binary(
+        scene: &EmberScene,
+        nodes: &mut std::vec::Vec<EmberBvhNode>,
+        indices: &mut std::vec::Vec<u32>,
+        emitters: &mut std::vec::Vec<u32>,
+        cdf: &mut std::vec::Vec<f32>,
+    ) -> EmberScene {
+        let (mut nc, mut ic, mut used, mut ne) = (0, 0, 0, 0);
+        // SAFETY (all calls below): live buffers of the sizes asked for.
+        unsafe {
+            assert_eq!(
+                ember_bvh_capacity(scene.triangle_count, &mut nc, &mut ic),
+                EMBER_OK
+            );
+            nodes.resize(nc as usize, EmberBvhNode::default());
+            indices.resize(ic as usize, 0);
+            let r = ember_build_bvh(
+                scene,
+                nodes.as_mut_ptr(),
+                nc,
+                indices.as_mut_ptr(),
+                ic,
+                &mut used,
+            );
+            assert_eq!(r, EMBER_OK);
+            ember_build_emitters(scene, null_mut(), null_mut(), 0, &mut ne);
+            emitters.resize(ne as usize, 0);
+            cdf.resize(ne as usize, 0.0);
+            let r =
+                ember_build_emitters(scene, emitters.as_mut_ptr(), cdf.as_mut_ptr(), ne, &mut ne);
+            assert_eq!(r, EMBER_OK);
+        }
+        EmberScene {
+            emitter_triangles: emitters.as_ptr(),
+            emitter_cdf: cdf.as_ptr(),
+            emitter_count: ne,
+            bvh_nodes: nodes.as_ptr(),
+            bvh_node_count: used,
+            bvh_indices: indices.as_ptr(),
+            ..*scene
+        }
+    }
+
+    #[test]
+    fn accel_renders_the_binary_trees_images_bit_for_bit() {
+        let soup = Soup::new(300);
+        let (mut nodes, mut indices, mut emitters, mut cdf) = Default::default();
+        let binary = with_binary(
+            &soup.scene(),
+            &mut nodes,
+            &mut indices,
+            &mut emitters,
+            &mut cdf,
+        );
+        let (accel, used) = build_accel(&soup.scene());
+        let wide = EmberScene {
+            // The BVH arrays are not read when the accel is given.
+            bvh_nodes: null(),
+            bvh_node_count: 0,
+            bvh_indices: null(),
+            accel: accel.as_ptr().cast(),
+            accel_bytes: used,
+            ..binary
+        };
+        // SAFETY: live locals.
+        assert_eq!(unsafe { ember_scene_check(&wide) }, EMBER_OK);
+        // The tree has interior nodes and leaves in groups.
+        // SAFETY: `wide.accel` is valid for `used` bytes.
+        let view = unsafe { accel_view(&wide) }.unwrap();
+        assert!(view.nodes.len() > 1 && view.leaf_groups.len() * GROUP_WIDTH >= 304);
+        let expected = render_all(&binary);
+        assert_eq!(render_all(&wide), expected);
+        // Position-independent: its used bytes copied elsewhere render the same.
+        let mut copy = blocks(used);
+        // SAFETY: both buffers hold `used` bytes and do not overlap.
+        unsafe {
+            core::ptr::copy_nonoverlapping(
+                accel.as_ptr().cast::<u8>(),
+                copy.as_mut_ptr().cast::<u8>(),
+                used,
+            );
+        }
+        let moved = EmberScene {
+            accel: copy.as_ptr().cast(),
+            ..wide
+        };
+        assert_eq!(render_all(&moved), expected);
+        // The build is a function of the geometry: the same bytes again, padding included.
+        let (again, used_again) = build_accel(&soup.scene());
+        // SAFETY: both hold `used` initialised bytes.
+        let bytes =
+            |b: &[Block]| unsafe { core::slice::from_raw_parts(b.as_ptr().cast::<u8>(), used) };
+        assert_eq!(used_again, used);
+        assert_eq!(bytes(&again), bytes(&accel));
+    }
+
+    #[test]
+    fn accel_build_checks_its_buffers() {
+        let soup = Soup::new(40);
+        let scene = soup.scene();
+        let (mut accel_bytes, mut scratch_bytes) = (0, 0);
+        // SAFETY (all calls below): live locals of at least the sizes passed.
+        unsafe {
+            assert_eq!(
+                ember_accel_capacity(44, &mut accel_bytes, &mut scratch_bytes),
+                EMBER_OK
+            );
+            assert_eq!(ember_accel_capacity(44, null_mut(), null_mut()), EMBER_OK);
+        }
+        let (mut accel, mut scratch) = (blocks(accel_bytes + 64), blocks(scratch_bytes + 64));
+        let a = accel.as_mut_ptr().cast::<u8>();
+        let s = scratch.as_mut_ptr().cast::<u8>();
+        let build = |a: *mut u8, ab: usize, s: *mut u8, sb: usize| {
+            let mut used = 0;
+            // SAFETY: the buffers are live and hold at least `ab` and `sb` bytes (checked by
+            // the callers below: at most one block past the start).
+            let r = unsafe { ember_build_accel(&scene, a.cast(), ab, s.cast(), sb, &mut used) };
+            (r, used)
+        };
+        assert_eq!(
+            build(a, accel_bytes - 1, s, scratch_bytes).0,
+            EMBER_ERROR_SIZE
+        );
+        assert_eq!(
+            build(a, accel_bytes, s, scratch_bytes - 1).0,
+            EMBER_ERROR_SIZE
+        );
+        // SAFETY: one byte into buffers one block longer than needed.
+        let (a1, s1) = unsafe { (a.add(1), s.add(1)) };
+        assert_eq!(build(a1, accel_bytes, s, scratch_bytes).0, EMBER_ERROR_SIZE);
+        assert_eq!(build(a, accel_bytes, s1, scratch_bytes).0, EMBER_ERROR_SIZE);
+        assert_eq!(
+            build(null_mut(), accel_bytes, s, scratch_bytes).0,
+            EMBER_ERROR_NULL_POINTER
+        );
+        let bad_vertex: std::vec::Vec<[u32; 3]> = soup
+            .triangles
+            .iter()
+            .map(|t| [t[0], t[1], soup.positions.len() as u32])
+            .collect();
+        let bad = EmberScene {
+            triangles: bad_vertex.as_ptr(),
+            ..scene
+        };
+        let mut used = 0;
+        // SAFETY: live buffers of the sizes asked for.
+        let r = unsafe {
+            ember_build_accel(
+                &bad,
+                a.cast(),
+                accel_bytes,
+                s.cast(),
+                scratch_bytes,
+                &mut used,
+            )
+        };
+        assert_eq!(r, EMBER_ERROR_INVALID_SCENE);
+        let (r, used) = build(a, accel_bytes, s, scratch_bytes);
+        assert_eq!(r, EMBER_OK);
+        assert!(used <= accel_bytes);
+        // No triangles: a tree no ray enters; the scene renders black.
+        let empty = EmberScene {
+            triangle_count: 0,
+            ..scene
+        };
+        let (accel, used) = build_accel(&empty);
+        let empty = EmberScene {
+            accel: accel.as_ptr().cast(),
+            accel_bytes: used,
+            ..empty
+        };
+        assert_eq!(render_all(&empty).iter().sum::<f32>(), 0.0);
+    }
+
+    #[test]
+    fn accel_check_refuses_what_traversal_cannot_walk_or_another_build_wrote() {
+        let soup = Soup::new(200);
+        let (mut nodes, mut indices, mut emitters, mut cdf) = Default::default();
+        let binary = with_binary(
+            &soup.scene(),
+            &mut nodes,
+            &mut indices,
+            &mut emitters,
+            &mut cdf,
+        );
+        let (accel, used) = build_accel(&soup.scene());
+        let good = EmberScene {
+            accel: accel.as_ptr().cast(),
+            accel_bytes: used,
+            ..binary
+        };
+        // SAFETY (all calls below): every scene's arrays are live for their counts; each
+        // tampered accel is a live copy of `used` bytes.
+        assert_eq!(unsafe { ember_scene_check(&good) }, EMBER_OK);
+        let view = unsafe { accel_view(&good) }.unwrap();
+        let layout = AccelLayout::new(
+            view.nodes.len(),
+            view.prim_order.len(),
+            view.leaf_groups.len(),
+        )
+        .unwrap();
+        assert_eq!(layout.end, used);
+        let check = |edit: &dyn Fn(&mut [u8]), bytes: usize| {
+            let mut copy = blocks(used.max(bytes));
+            // SAFETY: `copy` holds at least `used` bytes; the accel does too.
+            let b = unsafe {
+                core::ptr::copy_nonoverlapping(
+                    accel.as_ptr().cast::<u8>(),
+                    copy.as_mut_ptr().cast::<u8>(),
+                    used,
+                );
+                core::slice::from_raw_parts_mut(copy.as_mut_ptr().cast::<u8>(), used)
+            };
+            edit(b);
+            let scene = EmberScene {
+                accel: copy.as_ptr().cast(),
+                accel_bytes: bytes,
+                ..good
+            };
+            unsafe { ember_scene_check(&scene) }
+        };
+        let word =
+            |b: &mut [u8], at: usize, v: u32| b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        let nothing = |_: &mut [u8]| {};
+        assert_eq!(check(&nothing, used), EMBER_OK);
+        assert_eq!(check(&nothing, used - 1), EMBER_ERROR_SIZE, "truncated");
+        assert_eq!(
+            check(&nothing, 32),
+            EMBER_ERROR_SIZE,
+            "shorter than its header"
+        );
+        // Header fields: magic, layout, width (another build's), group width, node count
+        // beyond the bytes, order length not matching the groups, triangle count.
+        for (field, value, code) in [
+            (0, 0x1234_5678, EMBER_ERROR_INVALID_SCENE),
+            (1, 2, EMBER_ERROR_INVALID_SCENE),
+            (2, if WIDTH == 4 { 8 } else { 4 }, EMBER_ERROR_INVALID_SCENE),
+            (3, 8, EMBER_ERROR_INVALID_SCENE),
+            (4, view.nodes.len() as u32 + 1, EMBER_ERROR_SIZE),
+            (
+                5,
+                view.prim_order.len() as u32 + GROUP_WIDTH as u32,
+                EMBER_ERROR_INVALID_SCENE,
+            ),
+            (
+                7,
+                soup.triangles.len() as u32 - 1,
+                EMBER_ERROR_INVALID_SCENE,
+            ),
+        ] {
+            let edit = |b: &mut [u8]| word(b, 4 * field, value);
+            assert_eq!(check(&edit, used), code, "header field {field} = {value}");
+        }
+        // Nodes: a child pointing back at the root (a cycle), a child past the last node, a
+        // leaf past the order, a lane of the root made a leaf (its subtree unreferenced).
+        let child = |node: usize, lane: usize| {
+            layout.nodes + node * size_of::<WideNode>() + 24 * WIDTH + 4 * lane
+        };
+        let count = |node: usize, lane: usize| {
+            layout.nodes + node * size_of::<WideNode>() + 28 * WIDTH + 2 * lane
+        };
+        let interior = (0..WIDTH).find(|&l| !view.nodes[0].is_leaf(l)).unwrap();
+        let leaf = view
+            .nodes
+            .iter()
+            .enumerate()
+            .find_map(|(i, n)| {
+                (0..WIDTH)
+                    .find(|&l| n.is_leaf(l) && n.count[l] > 0)
+                    .map(|l| (i, l))
+            })
+            .unwrap();
+        let n = view.nodes.len() as u32;
+        type Edit<'a> = std::boxed::Box<dyn Fn(&mut [u8]) + 'a>;
+        let edits: [(&str, Edit); 5] = [
+            (
+                "cycle",
+                std::boxed::Box::new(move |b| word(b, child(0, interior), 0)),
+            ),
+            (
+                "past the nodes",
+                std::boxed::Box::new(move |b| word(b, child(0, interior), n)),
+            ),
+            (
+                "leaf past the order",
+                std::boxed::Box::new(move |b| {
+                    word(
+                        b,
+                        child(leaf.0, leaf.1),
+                        WIDE_LEAF | view.prim_order.len() as u32,
+                    )
+                }),
+            ),
+            (
+                "leaf count past the order",
+                std::boxed::Box::new(move |b| {
+                    let at = count(leaf.0, leaf.1);
+                    b[at..at + 2].copy_from_slice(&u16::MAX.to_le_bytes());
+                }),
+            ),
+            (
+                "unreferenced subtree",
+                std::boxed::Box::new(move |b| word(b, child(0, interior), WIDE_LEAF)),
+            ),
+        ];
+        for (what, edit) in &edits {
+            assert_eq!(
+                check(edit.as_ref(), used),
+                EMBER_ERROR_INVALID_SCENE,
+                "{what}"
+            );
+        }
+        // The leaf order naming a triangle the scene lacks, a group vertex that is not the
+        // triangle's (checked with the rest of the scene).
+        let bad_order = |b: &mut [u8]| word(b, layout.order, soup.triangles.len() as u32);
+        assert_eq!(check(&bad_order, used), EMBER_ERROR_INVALID_SCENE);
+        let bad_vertex = |b: &mut [u8]| word(b, layout.groups, 1.5f32.to_bits());
+        assert_eq!(check(&bad_vertex, used), EMBER_ERROR_INVALID_SCENE);
+        // Misaligned: the same bytes one byte on.
+        let mut shifted = blocks(used + 64);
+        // SAFETY: `shifted` holds `used + 64` bytes.
+        let scene = unsafe {
+            let at = shifted.as_mut_ptr().cast::<u8>().add(1);
+            core::ptr::copy_nonoverlapping(accel.as_ptr().cast::<u8>(), at, used);
+            EmberScene {
+                accel: at.cast(),
+                accel_bytes: used,
+                ..good
+            }
+        };
+        assert_eq!(unsafe { ember_scene_check(&scene) }, EMBER_ERROR_SIZE);
+    }
+
+    #[test]
+    fn wide_check_accepts_collapsed_trees_and_bounds_their_depth() {
+        // A chain: each node's lane 0 the next node, the other lanes leaves.
+        let chain = |len: usize| {
+            let mut nodes = std::vec![WideNode::default(); len];
+            for (i, node) in nodes.iter_mut().enumerate() {
+                for lane in 1..WIDTH {
+                    node.child[lane] = WIDE_LEAF;
+                    node.count[lane] = 1;
+                }
+                node.child[0] = if i + 1 < len { i as u32 + 1 } else { WIDE_LEAF };
+            }
+            nodes
+        };
+        assert!(check_wide(&chain(WIDE_MAX_DEPTH), 1));
+        assert!(!check_wide(&chain(WIDE_MAX_DEPTH + 1), 1));
+        assert!(!check_wide(&chain(3), 0), "leaves past an empty order");
+        assert!(!check_wide(&[], 0));
+        assert!(check_wide(&[WideNode::default()], 0));
     }
 }

@@ -4,12 +4,14 @@
  * (tests/determinism/src/lib.rs, same literal quads, materials, texels and texture
  * coordinates: diffuse, Phong and mixture boxes, a mirror, a rough metal panel, a glass box
  * with a frosted face, a textured floor and a textured Phong picture) in arrays, builds the
- * BVH and the emitter table into its own buffers, renders the box with each path integrator
+ * binary BVH, the wide acceleration structure and the emitter table into its own buffers,
+ * renders the box (traced with the acceleration structure) with each path integrator
  * from two threads (pthreads, the top and bottom halves, each in 8x8 tiles), renders it with
  * the light tracer and BDPT (power and balance heuristics) the same way, each thread adding
  * its splats to its own splat buffer, merges the two buffers and resolves the images, bakes a
- * few points, checks the ABI version and that bad input (old-layout records included) gets
- * error codes, and prints the FNV-1a hashes of the pixels and of the baked values. With an
+ * few points, checks that the binary BVH gives the same pixels and baked values, checks the
+ * ABI version and that bad input (old-layout records and damaged acceleration structures
+ * included) gets error codes, and prints the FNV-1a hashes of the pixels and of the baked values. With an
  * argument it also writes every array and result to that file (raw little-endian), which
  * tests/tests/capi.rs compares bit for bit with the Rust API's.
  *
@@ -390,6 +392,35 @@ int main(int argc, char **argv) {
     scene.bvh_node_count = node_count;
     scene.bvh_indices = indices;
     CHECK(ember_scene_check(&scene));
+    /* The scene as traced with the binary BVH; `scene` gets the acceleration structure. */
+    EmberScene binary_scene = scene;
+
+    /* The acceleration structure, in buffers sized by the query and aligned as it requires
+     * (aligned_alloc wants a multiple of the alignment; one block more for the misaligned
+     * attempt below). The scratch is needed during the build only. */
+    size_t accel_capacity = 0, accel_scratch_bytes = 0, accel_used = 0;
+    CHECK(ember_accel_capacity(NTRIANGLES, &accel_capacity, &accel_scratch_bytes));
+    size_t accel_block = (accel_capacity / EMBER_ACCEL_ALIGN + 2) * EMBER_ACCEL_ALIGN;
+    unsigned char *accel = aligned_alloc(EMBER_ACCEL_ALIGN, accel_block);
+    void *accel_scratch = aligned_alloc(
+        EMBER_ACCEL_ALIGN, (accel_scratch_bytes / EMBER_ACCEL_ALIGN + 1) * EMBER_ACCEL_ALIGN);
+    if (!accel || !accel_scratch) return 1;
+    EXPECT(ember_build_accel(&scene, accel, accel_capacity - 1, accel_scratch,
+                             accel_scratch_bytes, NULL),
+           EMBER_ERROR_SIZE);
+    EXPECT(ember_build_accel(&scene, accel + 4, accel_capacity, accel_scratch,
+                             accel_scratch_bytes, NULL),
+           EMBER_ERROR_SIZE);
+    EXPECT(ember_build_accel(&scene, accel, accel_capacity, accel_scratch,
+                             accel_scratch_bytes - 1, NULL),
+           EMBER_ERROR_SIZE);
+    CHECK(ember_build_accel(&scene, accel, accel_capacity, accel_scratch, accel_scratch_bytes,
+                            &accel_used));
+    free(accel_scratch);
+    if (accel_used == 0 || accel_used > accel_capacity) return 1;
+    scene.accel = accel;
+    scene.accel_bytes = accel_used;
+    CHECK(ember_scene_check(&scene));
 
     for (int t = 0; t < NTHREADS; t++) {
         /* Below each stack a page that faults when touched: a thread that outgrows its stack
@@ -501,6 +532,30 @@ int main(int argc, char **argv) {
         CHECK(ember_bake_vertices(&scene, &bake, POINTS + 3, NPOINTS - 3, bakes[k] + 9));
     }
 
+    /* The binary BVH traces the same closest hits and shadow rays: every path tracer's image
+     * (one call for the whole film) and the bakes are the same bits. */
+    {
+        static float image[WIDTH * HEIGHT * 3], baked[NPOINTS * 3];
+        EmberSettings s = settings;
+        for (int k = 0; k < 3; k++) {
+            s.integrator = integrators[k];
+            CHECK(ember_render_tile(&binary_scene, &CAMERA, &s, 0, 0, WIDTH, HEIGHT, image));
+            if (memcmp(image, images[k], sizeof image) != 0) {
+                fprintf(stderr, "cornell: integrator %u differs with the binary BVH\n",
+                        (unsigned)integrators[k]);
+                return 1;
+            }
+        }
+        for (int k = 0; k < 2; k++) {
+            bake.bake_estimator = estimators[k];
+            CHECK(ember_bake_vertices(&binary_scene, &bake, POINTS, NPOINTS, baked));
+            if (memcmp(baked, bakes[k], sizeof baked) != 0) {
+                fprintf(stderr, "cornell: bake %d differs with the binary BVH\n", k);
+                return 1;
+            }
+        }
+    }
+
     /* Bad input gets error codes, never a crash. */
     float px[3];
     EXPECT(ember_render_tile(NULL, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_NULL_POINTER);
@@ -548,9 +603,39 @@ int main(int argc, char **argv) {
     EmberScene bad = scene;
     bad.material_count = 3; /* triangles refer to materials 3 to 11 */
     EXPECT(ember_render_tile(&bad, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_INVALID_SCENE);
-    bad = scene;
+    bad = binary_scene;
     bad.bvh_node_count = 1; /* the root's children are missing */
     EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
+    bad = scene; /* with an acceleration structure the binary BVH is not read */
+    bad.bvh_node_count = 1;
+    CHECK(ember_scene_check(&bad));
+    bad = scene;
+    bad.accel_bytes = accel_used - 1; /* truncated */
+    EXPECT(ember_render_tile(&bad, &CAMERA, &settings, 0, 0, 1, 1, px), EMBER_ERROR_SIZE);
+    bad = scene;
+    bad.accel = accel + 4; /* misaligned */
+    EXPECT(ember_scene_check(&bad), EMBER_ERROR_SIZE);
+    {
+        /* Damaged copies: another magic; a leaf lane of the root pointing past the order. */
+        unsigned char *copy = aligned_alloc(EMBER_ACCEL_ALIGN, accel_block);
+        if (!copy) return 1;
+        bad = scene;
+        bad.accel = copy;
+        memcpy(copy, accel, accel_used);
+        CHECK(ember_scene_check(&bad));
+        copy[0] ^= 1;
+        EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
+        EXPECT(ember_bake_vertices(&bad, &bake, POINTS, 1, px), EMBER_ERROR_INVALID_SCENE);
+        memcpy(copy, accel, accel_used);
+        /* The root's child indices start 24 lanes of floats into the node at byte 64. */
+        uint32_t width, past = 0xffffffffu;
+        memcpy(&width, copy + 8, sizeof width);
+        for (uint32_t lane = 0; lane < width; lane++) {
+            memcpy(copy + 64 + 24 * width + 4 * lane, &past, sizeof past);
+        }
+        EXPECT(ember_scene_check(&bad), EMBER_ERROR_INVALID_SCENE);
+        free(copy);
+    }
     bad = scene;
     bad.emitter_cdf = NULL;
     EXPECT(ember_scene_check(&bad), EMBER_ERROR_NULL_POINTER);
@@ -639,6 +724,8 @@ int main(int argc, char **argv) {
         write_u32(f, node_count);
         write_all(f, nodes, node_count * sizeof *nodes);
         write_all(f, indices, NTRIANGLES * sizeof *indices);
+        write_u32(f, (uint32_t)accel_used);
+        write_all(f, accel, accel_used);
         write_u32(f, WIDTH);
         write_u32(f, HEIGHT);
         write_all(f, images, sizeof images);
@@ -656,6 +743,7 @@ int main(int argc, char **argv) {
     }
     free(nodes);
     free(indices);
+    free(accel);
     free(emitter_triangles);
     free(emitter_cdf);
     for (int t = 0; t < NTHREADS; t++) {

@@ -13,7 +13,8 @@ use ember_determinism::{
     BAKE_POINTS, HEIGHT, INTEGRATORS, MATERIALS, PIXELS, SPLAT_INTEGRATORS, TEXELS, TEXTURES,
     TRIANGLES, VERTICES, WIDTH,
 };
-use ember_kernel::bvh::{self, BvhNode};
+use ember_kernel::bvh::{self, BvhNode, WIDTH as WIDE_WIDTH};
+use ember_kernel::geometry::GROUP_WIDTH;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -67,10 +68,69 @@ impl Reader {
             })
             .collect()
     }
+    fn bytes(&mut self, n: usize) -> Vec<u8> {
+        let v = self.0[self.1..self.1 + n].to_vec();
+        self.1 += n;
+        v
+    }
     /// Floats as bit patterns, so comparisons are bitwise.
     fn f32_bits(&mut self, n: usize) -> Vec<u32> {
         self.u32s(n)
     }
+}
+
+/// The bytes `ember_build_accel` documents for the scene's wide tree (little-endian): a
+/// 64-byte header ("EMBA", layout 1, node width, group width, node count, order length, group
+/// count, triangle count, zeros), the nodes (each lane's `lo`, `hi` per axis, children, counts,
+/// zero padding), the leaf order, zeros up to a 16-byte boundary and the triangle groups.
+fn accel_bytes(scene: &Scene) -> Vec<u8> {
+    let nodes = &scene.bvh_nodes[..scene.bvh_node_count];
+    let order = &scene.bvh_wide_order[..scene.bvh_wide_order_len];
+    let groups = &scene.bvh_leaf_groups[..order.len() / GROUP_WIDTH];
+    let mut b = Vec::new();
+    let words = |b: &mut Vec<u8>, w: &[u32]| w.iter().for_each(|v| b.extend(v.to_le_bytes()));
+    words(
+        &mut b,
+        &[
+            u32::from_le_bytes(*b"EMBA"),
+            1,
+            WIDE_WIDTH as u32,
+            GROUP_WIDTH as u32,
+            nodes.len() as u32,
+            order.len() as u32,
+            groups.len() as u32,
+            TRIANGLES as u32,
+        ],
+    );
+    b.resize(64, 0);
+    for n in nodes {
+        for corner in [&n.lo, &n.hi] {
+            words(
+                &mut b,
+                &corner
+                    .iter()
+                    .flatten()
+                    .map(|c| c.to_bits())
+                    .collect::<Vec<_>>(),
+            );
+        }
+        words(&mut b, &n.child);
+        n.count.iter().for_each(|c| b.extend(c.to_le_bytes()));
+        b.resize(b.len() + 2 * WIDE_WIDTH, 0);
+    }
+    words(&mut b, order);
+    b.resize(b.len().next_multiple_of(16), 0);
+    for g in groups {
+        words(
+            &mut b,
+            &g.v.iter()
+                .flatten()
+                .flatten()
+                .map(|c| c.to_bits())
+                .collect::<Vec<_>>(),
+        );
+    }
+    b
 }
 
 fn bits3(v: &[[f32; 3]]) -> Vec<u32> {
@@ -176,6 +236,11 @@ fn c_program_renders_bit_identically_to_the_rust_api() {
         scene.bvh_prim_order,
         "BVH triangle order"
     );
+    // The acceleration structure the C program traced is, byte for byte, the wide tree, leaf
+    // order and triangle groups the command line traces (tests/determinism builds them).
+    let accel_used = r.u32() as usize;
+    let accel = r.bytes(accel_used);
+    assert_eq!(accel, accel_bytes(&scene), "acceleration structure");
 
     // Every pixel of the three renders (two threads, 8x8 tiles in C; one pixel at a time here).
     assert_eq!((r.u32(), r.u32()), (WIDTH, HEIGHT));

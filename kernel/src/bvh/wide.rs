@@ -61,6 +61,9 @@ pub struct WideNode {
     pub child: [u32; WIDTH],
     /// Number of primitives of a leaf child (0 for interior children and unused lanes).
     pub count: [u16; WIDTH],
+    /// Zero: the padding to 32 bytes a lane made a field, so that every byte of a node is
+    /// defined (the C API's acceleration structure is a function of its input, byte for byte).
+    pub pad: [u16; WIDTH],
 }
 
 const _: () = assert!(core::mem::size_of::<WideNode>() == 32 * WIDTH);
@@ -72,6 +75,7 @@ impl Default for WideNode {
             hi: [[f32::NEG_INFINITY; WIDTH]; 3],
             child: [WIDE_LEAF; WIDTH],
             count: [0; WIDTH],
+            pad: [0; WIDTH],
         }
     }
 }
