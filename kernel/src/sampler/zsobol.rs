@@ -40,9 +40,12 @@ const SOBOL_MATRICES: [[u32; 32]; 2] = {
     m
 };
 
-/// Dimension 1's matrix applied a byte at a time: `SOBOL_1_BYTES[j][b]` is the XOR of the
-/// columns selected by byte value `b` at byte position `j` of the index.
-const SOBOL_1_BYTES: [[u32; 256]; 4] = {
+/// Dimension 1's matrix applied a byte at a time, bit-reversed: `SOBOL_1_BYTES_REVERSED[j][b]`
+/// is the XOR of the columns selected by byte value `b` at byte position `j` of the index, its
+/// bits reversed. The scramble starts by reversing its input, and reversal commutes with XOR,
+/// so storing the columns reversed saves that reversal (dimension 0's point is the index
+/// reversed, so its reversal is the index itself).
+const SOBOL_1_BYTES_REVERSED: [[u32; 256]; 4] = {
     let mut t = [[0u32; 256]; 4];
     let mut j = 0;
     while j < 4 {
@@ -56,7 +59,7 @@ const SOBOL_1_BYTES: [[u32; 256]; 4] = {
                 }
                 k += 1;
             }
-            t[j][b] = v;
+            t[j][b] = v.reverse_bits();
             b += 1;
         }
         j += 1;
@@ -69,11 +72,17 @@ const SOBOL_1_BYTES: [[u32; 256]; 4] = {
 #[inline]
 #[must_use]
 pub fn sobol_u32(index: u64, dim: usize) -> u32 {
+    sobol_reversed(index, dim).reverse_bits()
+}
+
+/// [`sobol_u32`] with its bits reversed (what [`owen_scramble_reversed`] takes).
+#[inline]
+fn sobol_reversed(index: u64, dim: usize) -> u32 {
     let a = index as u32;
     if dim == 0 {
-        return a.reverse_bits();
+        return a;
     }
-    let t = &SOBOL_1_BYTES;
+    let t = &SOBOL_1_BYTES_REVERSED;
     t[0][(a & 0xFF) as usize]
         ^ t[1][((a >> 8) & 0xFF) as usize]
         ^ t[2][((a >> 16) & 0xFF) as usize]
@@ -98,7 +107,13 @@ fn sobol_1_by_columns(index: u64) -> u32 {
 #[inline]
 #[must_use]
 pub const fn owen_scramble(v: u32, seed: u32) -> u32 {
-    let mut v = v.reverse_bits();
+    owen_scramble_reversed(v.reverse_bits(), seed)
+}
+
+/// [`owen_scramble`] of the fraction whose bit reversal is `r`.
+#[inline]
+const fn owen_scramble_reversed(r: u32, seed: u32) -> u32 {
+    let mut v = r;
     v ^= v.wrapping_mul(0x3d20_adea);
     v = v.wrapping_add(seed);
     v = v.wrapping_mul((seed >> 16) | 1);
@@ -318,7 +333,7 @@ impl ZSobolLayout {
 #[inline]
 fn draw<const N: usize>(index: u64, key: u64) -> [f32; N] {
     let seeds = [key as u32, (key >> 32) as u32];
-    core::array::from_fn(|k| to_unit(owen_scramble(sobol_u32(index, k), seeds[k])))
+    core::array::from_fn(|k| to_unit(owen_scramble_reversed(sobol_reversed(index, k), seeds[k])))
 }
 
 impl ZSobolSampler {
@@ -578,8 +593,11 @@ mod tests {
         for (spp, w, h) in [
             (1, 1, 1),
             (2, 3, 5),
+            (4, 5, 3),
             (8, 64, 48),
+            (16, 64, 64),
             (32, 320, 240),
+            (256, 40, 30),
             (512, 17, 9),
         ] {
             for seed in [0u64, 0xC0FFEE] {
