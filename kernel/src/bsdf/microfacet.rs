@@ -132,10 +132,10 @@ impl TrowbridgeReitz {
         let w = if w.z < 0.0 { -w } else { w };
         // Stretch to the configuration where the distribution is that of a unit hemisphere.
         let wh = Vec3::new(a * w.x, a * w.y, w.z).normalize();
-        let phi = 2.0 * PI * u.x;
+        let (sin_phi, cos_phi) = crate::math::sin_cos(2.0 * PI * u.x);
         let z = (1.0 - u.y) * (1.0 + wh.z) - wh.z;
         let sin_theta = safe_sqrt(1.0 - z * z);
-        let cap = Vec3::new(sin_theta * libm::cosf(phi), sin_theta * libm::sinf(phi), z);
+        let cap = Vec3::new(sin_theta * cos_phi, sin_theta * sin_phi, z);
         let h = cap + wh;
         // Unstretch; the floor keeps the normal strictly above the horizon after rounding.
         Vec3::new(a * h.x, a * h.y, h.z.max(1e-6)).normalize()

@@ -22,7 +22,8 @@ pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
             core::f32::consts::FRAC_PI_2 - core::f32::consts::FRAC_PI_4 * (o.x / o.y),
         )
     };
-    Vec2::new(r * libm::cosf(theta), r * libm::sinf(theta))
+    let (sin, cos) = super::sin_cos(theta);
+    Vec2::new(r * cos, r * sin)
 }
 
 /// Inverse of [`sample_concentric_disk`].
@@ -89,12 +90,8 @@ pub fn invert_cosine_hemisphere_sample(w: Vec3) -> Vec2 {
 pub fn sample_phong_lobe(u: Vec2, n: f32) -> Vec3 {
     let cos_theta = libm::powf(u.x, 1.0 / (n + 1.0));
     let sin_theta = safe_sqrt(1.0 - cos_theta * cos_theta);
-    let phi = 2.0 * PI * u.y;
-    Vec3::new(
-        sin_theta * libm::cosf(phi),
-        sin_theta * libm::sinf(phi),
-        cos_theta,
-    )
+    let (sin_phi, cos_phi) = super::sin_cos(2.0 * PI * u.y);
+    Vec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
 }
 
 /// Density of [`sample_phong_lobe`]: (n+1)/(2π)·cosⁿθ for cosθ > 0.
@@ -160,8 +157,8 @@ pub fn invert_uniform_triangle_sample(b: Vec2) -> Vec2 {
 pub fn sample_uniform_sphere(u: Vec2) -> Vec3 {
     let z = 1.0 - 2.0 * u.x;
     let r = safe_sqrt(1.0 - z * z);
-    let phi = 2.0 * PI * u.y;
-    Vec3::new(r * libm::cosf(phi), r * libm::sinf(phi), z)
+    let (sin_phi, cos_phi) = super::sin_cos(2.0 * PI * u.y);
+    Vec3::new(r * cos_phi, r * sin_phi, z)
 }
 
 /// Density of [`sample_uniform_sphere`].
