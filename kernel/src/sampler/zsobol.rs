@@ -386,8 +386,10 @@ sampler_from_next!(ZSobolSampler);
 /// Dimensions whose key and per-pixel index part a [`ZSobolPixelSampler`] remembers: slot
 /// `dimension % MEMO_SLOTS` (direct-mapped, so BDPT's light-subpath dimensions far above the
 /// camera subpath's are kept too, at the cost of an occasional eviction). A path tracer's
-/// sample uses 2 + 7 per bounce.
-pub const MEMO_SLOTS: usize = 64;
+/// sample uses 2 + 7 per bounce, so 128 slots hold 18 bounces: on the project's Cornell box
+/// (unbounded depth, 16 spp) 64 slots evicted often enough to cost 1% of the render's
+/// instructions (1,621 M against 1,604 M at 128; 1,603 M at 256).
+pub const MEMO_SLOTS: usize = 128;
 
 /// The samples of one pixel, one sample after another (pbrt-v4's `StartPixelSample` on a
 /// sampler kept for the pixel): the values of [`ZSobolLayout::start_pixel_sample`], bit for
@@ -589,7 +591,8 @@ mod tests {
         // 1 spp (no sample digits), films whose Morton codes reach the top digit, 1D and 2D
         // draws in a per-sample pattern, and jumps to dimensions that share a memo slot
         // (d and d + MEMO_SLOTS) or lie far beyond it, so that slots are evicted and refilled.
-        let jumps = [0u32, 5, 63, 64, 127, 3, 64 * 7 + 5, 1001, 5, 2];
+        let m = MEMO_SLOTS as u32;
+        let jumps = [0u32, 5, m - 1, m, 2 * m - 1, 3, m * 7 + 5, 1001, 5, 2];
         for (spp, w, h) in [
             (1, 1, 1),
             (2, 3, 5),
