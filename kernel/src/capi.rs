@@ -1172,6 +1172,25 @@ pub unsafe extern "C" fn ember_build_bvh(
     })
 }
 
+/// What the builds read of a scene: its positions and triangles.
+///
+/// # Safety
+/// As for [`record`] and [`slice`]: `scene` null, or an [`EmberScene`] (or a record of another
+/// ABI version with its first 4 bytes readable) whose non-null position and triangle arrays
+/// are valid for their counts and not written during `'a`.
+unsafe fn build_geometry<'a>(
+    scene: *const EmberScene,
+) -> Result<(&'a [Vec3], &'a [[u32; 3]]), i32> {
+    // SAFETY: the caller's contract; `Vec3` has the layout of `[f32; 3]` (asserted above).
+    unsafe {
+        let scene = record(scene)?;
+        Ok((
+            slice(scene.positions.cast::<Vec3>(), scene.vertex_count as usize)?,
+            slice(scene.triangles, scene.triangle_count as usize)?,
+        ))
+    }
+}
+
 /// The body of [`ember_build_bvh`].
 ///
 /// # Safety
@@ -1186,12 +1205,10 @@ unsafe fn ember_build_bvh_impl(
     out_node_count: *mut u32,
 ) -> Result<(), i32> {
     // SAFETY: the caller's contract above (the position and triangle arrays valid for their
-    // counts); `Vec3` has the layout of `[f32; 3]` and `EmberBvhNode` that of `BvhNode`
-    // (asserted above), so the positions are `Vec3`s and the node buffer holds `BvhNode`s.
+    // counts); `EmberBvhNode` has the layout of `BvhNode` (asserted above), so the node buffer
+    // holds `BvhNode`s.
     let (positions, triangles, nodes, indices) = unsafe {
-        let scene = record(scene)?;
-        let positions = slice(scene.positions.cast::<Vec3>(), scene.vertex_count as usize)?;
-        let triangles = slice(scene.triangles, scene.triangle_count as usize)?;
+        let (positions, triangles) = build_geometry(scene)?;
         let nt = triangles.len();
         if (index_capacity as usize) < nt || (node_capacity as usize) < bvh::max_nodes(nt) {
             return Err(EMBER_ERROR_SIZE);
@@ -1303,15 +1320,8 @@ unsafe fn ember_build_accel_impl(
     scratch_bytes: usize,
     out_used_bytes: *mut usize,
 ) -> Result<(), i32> {
-    // SAFETY: the caller's contract (the position and triangle arrays valid for their counts);
-    // `Vec3` has the layout of `[f32; 3]` (asserted above).
-    let (positions, triangles) = unsafe {
-        let scene = record(scene)?;
-        (
-            slice(scene.positions.cast::<Vec3>(), scene.vertex_count as usize)?,
-            slice(scene.triangles, scene.triangle_count as usize)?,
-        )
-    };
+    // SAFETY: the caller's contract (the position and triangle arrays valid for their counts).
+    let (positions, triangles) = unsafe { build_geometry(scene)? };
     let nt = triangles.len();
     let (accel_needed, scratch_needed) = accel_capacity(nt).ok_or(EMBER_ERROR_SIZE)?;
     if accel.is_null() || scratch.is_null() {
