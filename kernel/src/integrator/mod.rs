@@ -26,7 +26,8 @@ pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};
 pub use light_tracer::{light_trace, ray_to_camera};
 pub use path::{
-    li_path, li_path_from_surface, power_heuristic, DirectLighting, PathStrategy, Roulette,
+    li_path, li_path_from_surface, power_heuristic, DirectLighting, PathState, PathStrategy,
+    Roulette,
 };
 
 use crate::camera::Camera;

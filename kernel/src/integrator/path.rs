@@ -101,24 +101,74 @@ pub fn li_path<S: Sampler>(
 #[inline(always)]
 pub fn li_path_from_surface<S: Sampler>(
     scene: &SceneView<'_>,
-    mut si: SurfaceInteraction,
-    mut bsdf: SurfaceBsdf,
+    si: SurfaceInteraction,
+    bsdf: SurfaceBsdf,
     settings: &PathSettings,
     strategy: &PathStrategy,
     sampler: &mut S,
     rays: &mut u32,
 ) -> Rgb {
-    let mut l = Rgb::ZERO;
-    let mut beta = Rgb::ONE;
-    let mut eta_scale = 1.0f32;
-    let mut bounces = 0u32;
-    loop {
+    let mut path = PathState::new(si, bsdf);
+    while path.bounce(scene, settings, strategy, sampler, rays) {}
+    path.l
+}
+
+/// One path between bounces: everything the path loop carries from one scattering vertex to
+/// the next (Mitsuba 3's loop state). [`li_path_from_surface`] runs [`Self::bounce`] until it
+/// says the path has ended; a driver that advances many paths a bounce at a time runs the same
+/// bounces, so its paths compute exactly what the one-path loop computes.
+#[derive(Clone, Copy, Debug)]
+pub struct PathState {
+    /// Radiance gathered so far.
+    pub l: Rgb,
+    /// Throughput of the path up to `si`.
+    pub beta: Rgb,
+    /// Product of η′² over the dielectric crossings so far ([`Roulette::Adaptive`]).
+    pub eta_scale: f32,
+    /// Scattering vertices before `si`.
+    pub bounces: u32,
+    /// The scattering vertex the next bounce starts from, and its BSDF.
+    pub si: SurfaceInteraction,
+    pub bsdf: SurfaceBsdf,
+}
+
+impl PathState {
+    /// A path whose first scattering vertex is `si` with `bsdf`, nothing gathered yet.
+    #[inline(always)]
+    #[must_use]
+    pub fn new(si: SurfaceInteraction, bsdf: SurfaceBsdf) -> Self {
+        Self {
+            l: Rgb::ZERO,
+            beta: Rgb::ONE,
+            eta_scale: 1.0,
+            bounces: 0,
+            si,
+            bsdf,
+        }
+    }
+
+    /// Scatters at the current vertex: gathers its direct light, samples the next direction,
+    /// plays roulette, traces the ray and counts the emission it finds. Returns whether the
+    /// path goes on from a new vertex; the sampler must be at the vertex's first dimension
+    /// ([`dims::BounceDims`]), and is left at the next vertex's.
+    #[inline(always)]
+    pub fn bounce<S: Sampler>(
+        &mut self,
+        scene: &SceneView<'_>,
+        settings: &PathSettings,
+        strategy: &PathStrategy,
+        sampler: &mut S,
+        rays: &mut u32,
+    ) -> bool {
         // `si` is scattering vertex number `bounces`; light reaching it directly completes a
         // path with `bounces` scattering vertices.
-        bounces += 1;
+        self.bounces += 1;
+        let bounces = self.bounces;
         if !settings.allows(bounces) {
-            break;
+            return false;
         }
+        let si = &self.si;
+        let bsdf = &self.bsdf;
         let view = bsdf.seen_from(si.wo);
         let flags = bsdf.flags();
         let next_event = strategy.direct != DirectLighting::BsdfSampling && flags.is_non_specular();
@@ -128,13 +178,13 @@ pub fn li_path_from_surface<S: Sampler>(
         if next_event {
             let mis = strategy.direct == DirectLighting::Mis;
             let (u_select, u_light) = u.light(sampler);
-            if let Some(d) = sample_direct(scene, &si, &view, u_select, u_light, mis, rays) {
+            if let Some(d) = sample_direct(scene, si, &view, u_select, u_light, mis, rays) {
                 let w = if mis {
                     power_heuristic(d.pdf, d.pdf_bsdf)
                 } else {
                     1.0
                 };
-                l += beta * d.contribution * w;
+                self.l += self.beta * d.contribution * w;
             }
         }
         // The ray leaving the last vertex of a bounded path matters only for the emission it
@@ -144,7 +194,7 @@ pub fn li_path_from_surface<S: Sampler>(
             && strategy.direct == DirectLighting::NextEvent
             && !flags.contains(BsdfFlags::SPECULAR)
         {
-            break;
+            return false;
         }
         let lobe = if bsdf.uses_lobe_choice() {
             u.lobe(sampler)
@@ -152,16 +202,16 @@ pub fn li_path_from_surface<S: Sampler>(
             0.0
         };
         let Some(s) = view.sample(lobe, u.direction(sampler), TransportMode::Radiance) else {
-            break;
+            return false;
         };
         // Emission found by the sampled ray counts unless next-event estimation has it.
         let counts_emission = strategy.direct != DirectLighting::NextEvent || s.flags.is_specular();
         if terminal && !counts_emission {
-            break;
+            return false;
         }
-        beta *= s.weight;
+        self.beta *= s.weight;
         if s.flags.is_transmission() {
-            eta_scale *= s.eta * s.eta;
+            self.eta_scale *= s.eta * s.eta;
         }
         let u_roulette = if settings.roulette_applies(bounces) {
             u.roulette(sampler)
@@ -169,13 +219,16 @@ pub fn li_path_from_surface<S: Sampler>(
             0.0
         };
         let survives = match strategy.roulette {
-            Roulette::Fixed => settings.survives_roulette(bounces, u_roulette, &mut beta),
-            Roulette::Adaptive => {
-                settings.survives_adaptive_roulette(bounces, u_roulette, eta_scale, &mut beta)
-            }
+            Roulette::Fixed => settings.survives_roulette(bounces, u_roulette, &mut self.beta),
+            Roulette::Adaptive => settings.survives_adaptive_roulette(
+                bounces,
+                u_roulette,
+                self.eta_scale,
+                &mut self.beta,
+            ),
         };
         if !survives {
-            break;
+            return false;
         }
         u.finish(sampler);
         let next = si.spawn_ray(s.wi);
@@ -186,16 +239,17 @@ pub fn li_path_from_surface<S: Sampler>(
             scene.intersect(&next)
         };
         let Some(hit) = hit else {
-            break;
+            return false;
         };
-        let prev = si;
-        si = scene.interaction(&next, &hit);
+        let prev_p = si.p;
+        self.si = scene.interaction(&next, &hit);
+        let si = &self.si;
         if counts_emission {
-            let le = scene.emitted(&si);
+            let le = scene.emitted(si);
             if le != Rgb::ZERO {
                 // A delta bounce has no next-event estimate to share the light with.
                 let w = if strategy.direct == DirectLighting::Mis && !s.flags.is_specular() {
-                    let dist2 = (si.p - prev.p).length_squared();
+                    let dist2 = (si.p - prev_p).length_squared();
                     let cos_light = si.frame.n.dot(-s.wi);
                     let pdf_light =
                         emitter_pdf(scene, si.triangle).to_solid_angle(dist2, cos_light);
@@ -203,13 +257,13 @@ pub fn li_path_from_surface<S: Sampler>(
                 } else {
                     1.0
                 };
-                l += beta * le * w;
+                self.l += self.beta * le * w;
             }
         }
         if terminal {
-            break;
+            return false;
         }
-        bsdf = scene.bsdf_at(&si);
+        self.bsdf = scene.bsdf_at(si);
+        true
     }
-    l
 }
