@@ -15,6 +15,7 @@
 //! and Mitsuba 3 do.
 
 mod bake;
+mod batch;
 pub mod bdpt;
 pub mod dims;
 mod direct;
@@ -22,6 +23,7 @@ mod light_tracer;
 mod path;
 
 pub use bake::{bake_vertex, BakeEstimator, BakePoint};
+pub use batch::{render_pixel_batched, IndependentPixel, PixelSamples, BATCH};
 pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};
 pub use light_tracer::{light_trace, ray_to_camera};

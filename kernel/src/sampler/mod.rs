@@ -10,7 +10,8 @@ use glam::Vec2;
 
 mod zsobol;
 pub use zsobol::{
-    morton2, owen_scramble, sobol_u32, ZSobolLayout, ZSobolPixelSampler, ZSobolSampler, MEMO_SLOTS,
+    morton2, owen_scramble, sobol_u32, ZSobolLayout, ZSobolPixelSampler, ZSobolSampler, DRAW_LANES,
+    MEMO_SLOTS,
 };
 
 /// Which sequence a render's samples come from.

@@ -21,6 +21,8 @@
 
 use super::{mix64, Sampler};
 use glam::Vec2;
+#[cfg(target_arch = "x86_64")]
+use wide::u32x8;
 
 /// The generator matrices of Sobol's first two dimensions, as 32 columns of 32 bits (column
 /// `k` is what bit `k` of the index contributes). Dimension 0 is the van der Corput sequence
@@ -435,26 +437,207 @@ impl ZSobolPixelSampler {
     #[inline]
     fn next<const N: usize>(&mut self) -> [f32; N] {
         let d = self.dimension;
+        self.dimension = d.wrapping_add(N as u32);
         if self.past_layout {
             let key = self.layout.dimension_key(d);
-            self.dimension = d.wrapping_add(N as u32);
             return draw(self.layout.sample_index(self.morton_index, key), key);
         }
-        let slot = d as usize % MEMO_SLOTS;
-        let (key, pixel_part) = if self.tags[slot] == d {
-            (self.keys[slot], self.pixel_parts[slot])
-        } else {
-            let key = self.layout.dimension_key(d);
-            let part = self.layout.pixel_part(self.morton_index, key);
-            self.tags[slot] = d;
-            self.keys[slot] = key;
-            self.pixel_parts[slot] = part;
-            (key, part)
-        };
-        let index = pixel_part | self.layout.sample_part(self.morton_index, key);
-        self.dimension = d.wrapping_add(N as u32);
-        draw(index, key)
+        let (key, pixel_part) = self.memo(d);
+        draw(
+            pixel_part | self.layout.sample_part(self.morton_index, key),
+            key,
+        )
     }
+
+    /// Dimension `d`'s key and the permuted digits of the pixel's part of its index, from the
+    /// memo (computed and kept there on a miss).
+    #[inline]
+    fn memo(&mut self, d: u32) -> (u64, u64) {
+        let slot = d as usize % MEMO_SLOTS;
+        if self.tags[slot] == d {
+            return (self.keys[slot], self.pixel_parts[slot]);
+        }
+        let key = self.layout.dimension_key(d);
+        let part = self.layout.pixel_part(self.pixel_index, key);
+        self.tags[slot] = d;
+        self.keys[slot] = key;
+        self.pixel_parts[slot] = part;
+        (key, part)
+    }
+
+    /// The draw of `N` (1 or 2) dimensions from `dimension` on for several samples of the pixel
+    /// at once: `out[k][lane]` is dimension `dimension + k` of sample `indices[lane]`, for the
+    /// lanes whose bit is set in `live`, exactly what [`Self::start_sample`]`(indices[lane],
+    /// dimension)` and a draw of `N` give (other lanes are left alone). The key and the pixel's
+    /// digits are found once for all lanes, and the scramble runs in SIMD lanes
+    /// (`owen_scramble_lanes`); the sampler is left where it was.
+    #[inline]
+    pub fn draw_lanes<const N: usize>(
+        &mut self,
+        dimension: u32,
+        indices: &[u32; DRAW_LANES],
+        live: u32,
+        out: &mut [[f32; DRAW_LANES]; N],
+    ) {
+        let (key, pixel_part) = self.memo(dimension);
+        let capacity = self.layout.capacity();
+        let mut lanes = live & ((1 << DRAW_LANES) - 1);
+        let mut rest = lanes;
+        while rest != 0 {
+            let lane = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            if indices[lane] >= capacity {
+                // Past the layout, as `next` draws there.
+                let morton_index = self.pixel_index | u64::from(indices[lane]);
+                let key = self.layout.dimension_key(dimension);
+                let v: [f32; N] = draw(self.layout.sample_index(morton_index, key), key);
+                for k in 0..N {
+                    out[k][lane] = v[k];
+                }
+                lanes &= !(1 << lane);
+            }
+        }
+        let parts = self
+            .layout
+            .sample_parts(self.pixel_index, key, indices, lanes);
+        let mut points = [[0u32; DRAW_LANES]; N];
+        // Dimension 0's point, reversed, is the index; dimension 1's depends on the bytes of the
+        // index, of which only the lowest differs between the lanes when the sample bits fit in
+        // it (the pixel's bits above are the same for all).
+        let shared_high = (self.layout.log2_spp <= 8).then(|| {
+            let t = &SOBOL_1_BYTES_REVERSED;
+            let a = pixel_part as u32;
+            t[1][((a >> 8) & 0xFF) as usize]
+                ^ t[2][((a >> 16) & 0xFF) as usize]
+                ^ t[3][(a >> 24) as usize]
+        });
+        let mut rest = lanes;
+        while rest != 0 {
+            let lane = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let index = pixel_part | parts[lane];
+            points[0][lane] = index as u32;
+            if N == 2 {
+                points[N - 1][lane] = match shared_high {
+                    Some(high) => SOBOL_1_BYTES_REVERSED[0][(index & 0xFF) as usize] ^ high,
+                    None => sobol_reversed(index, 1),
+                };
+            }
+        }
+        let seeds = [key as u32, (key >> 32) as u32];
+        for k in 0..N {
+            let high = scrambled_high_bits(points[k], seeds[k]);
+            let mut rest = lanes;
+            while rest != 0 {
+                let lane = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                out[k][lane] = high[lane] as f32 * (1.0 / (1u32 << 24) as f32);
+            }
+        }
+    }
+}
+
+impl ZSobolLayout {
+    /// [`Self::sample_part`] of the samples `indices[lane]` of the pixel whose Morton index (at
+    /// sample 0) is `pixel_index`, for the lanes of `lanes`. A digit's permutation depends on
+    /// the digits above it, which neighbouring samples share: it is chosen once per run of lanes
+    /// with the same higher digits (one for all of a pixel's samples at the top digit), not once
+    /// per lane.
+    #[inline]
+    fn sample_parts(
+        &self,
+        pixel_index: u64,
+        key: u64,
+        indices: &[u32; DRAW_LANES],
+        lanes: u32,
+    ) -> [u64; DRAW_LANES] {
+        let odd = self.log2_spp & 1;
+        let mut parts = [0u64; DRAW_LANES];
+        let mut i = self.sample_base4_digits();
+        while i > odd {
+            i -= 1;
+            let shift = 2 * i - odd;
+            let mut last: Option<(u64, usize)> = None;
+            let mut rest = lanes;
+            while rest != 0 {
+                let lane = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                let m = pixel_index | u64::from(indices[lane]);
+                let higher = m >> (shift + 2);
+                let p = match last {
+                    Some((h, p)) if h == higher => p,
+                    _ => {
+                        let p = permutation_of(higher, key);
+                        last = Some((higher, p));
+                        p
+                    }
+                };
+                let digit = (m >> shift) & 3;
+                parts[lane] |= u64::from(PERMUTATIONS[p][digit as usize]) << shift;
+            }
+        }
+        if odd == 1 {
+            let mut last: Option<(u64, u64)> = None;
+            let mut rest = lanes;
+            while rest != 0 {
+                let lane = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                let m = pixel_index | u64::from(indices[lane]);
+                let flip = match last {
+                    Some((h, f)) if h == m >> 1 => f,
+                    _ => {
+                        let f = permutation_hash(m >> 1, key) >> 63;
+                        last = Some((m >> 1, f));
+                        f
+                    }
+                };
+                parts[lane] |= (m & 1) ^ flip;
+            }
+        }
+        parts
+    }
+}
+
+/// Samples [`ZSobolPixelSampler::draw_lanes`] draws at once.
+pub const DRAW_LANES: usize = 8;
+
+/// The high 24 bits of [`owen_scramble_reversed`] of each lane: in SIMD lanes on x86-64 (the
+/// kernel's `wide` dependency is x86-64 only), lane after lane elsewhere.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn scrambled_high_bits(points: [u32; DRAW_LANES], seed: u32) -> [u32; DRAW_LANES] {
+    (owen_scramble_lanes(u32x8::new(points), seed) >> 8u32).to_array()
+}
+
+/// The high 24 bits of [`owen_scramble_reversed`] of each lane: in SIMD lanes on x86-64 (the
+/// kernel's `wide` dependency is x86-64 only), lane after lane elsewhere.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn scrambled_high_bits(points: [u32; DRAW_LANES], seed: u32) -> [u32; DRAW_LANES] {
+    points.map(|r| owen_scramble_reversed(r, seed) >> 8)
+}
+
+/// [`owen_scramble_reversed`] in eight lanes: the same wrapping integer operations lane by
+/// lane, then the bit reversal by swaps of ever larger fields (x86 has no bit-reversal
+/// instruction; the scalar `reverse_bits` is a byte swap and three such swaps).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn owen_scramble_lanes(r: u32x8, seed: u32) -> u32x8 {
+    let mut v = r;
+    v ^= v * u32x8::splat(0x3d20_adea);
+    v += u32x8::splat(seed);
+    v *= u32x8::splat((seed >> 16) | 1);
+    v ^= v * u32x8::splat(0x0552_6c56);
+    v ^= v * u32x8::splat(0x53a2_2864);
+    let swap = |v: u32x8, shift: u32, mask: u32| {
+        let m = u32x8::splat(mask);
+        ((v >> shift) & m) | ((v & m) << shift)
+    };
+    v = swap(v, 1, 0x5555_5555);
+    v = swap(v, 2, 0x3333_3333);
+    v = swap(v, 4, 0x0F0F_0F0F);
+    v = swap(v, 8, 0x00FF_00FF);
+    (v >> 16u32) | (v << 16u32)
 }
 
 sampler_from_next!(ZSobolPixelSampler);
@@ -727,5 +910,72 @@ mod tests {
             // Stratified points are more uniform than random ones: far below the 0.001 point.
             assert!(chi2 < 37.7, "dim {dim}: chi2 {chi2}");
         }
+    }
+
+    /// The lane-wise draw gives each lane what the pixel sampler started at that lane's sample
+    /// and dimension draws, bit for bit: odd and even sample counts (one digit flipped or
+    /// not), counts whose indices leave the lowest byte (the shared Sobol' bytes), films of a
+    /// pixel and of many, lane masks with gaps, indices that are not consecutive or repeat,
+    /// deep dimensions (memo evictions) and, in release builds, indices past the layout.
+    #[test]
+    fn lane_draws_are_the_pixel_samplers_draws() {
+        let mut checked = 0usize;
+        for spp in [1u32, 2, 3, 8, 16, 32, 128, 512, 1024] {
+            for (w, h) in [(1u32, 1u32), (37, 23), (640, 480)] {
+                let layout = ZSobolLayout::new(0xD1A5 ^ u64::from(spp), spp, w, h);
+                let cap = layout.capacity();
+                let past = if cfg!(debug_assertions) { 0 } else { cap + 5 };
+                let index_sets: [[u32; DRAW_LANES]; 4] = [
+                    core::array::from_fn(|l| l as u32 % cap),
+                    core::array::from_fn(|l| (cap - 1).saturating_sub(3 * l as u32)),
+                    core::array::from_fn(|l| (l as u32 * 7 + 1) % cap),
+                    core::array::from_fn(|l| {
+                        if l == 5 && past > 0 {
+                            past
+                        } else {
+                            l as u32 / 3 % cap
+                        }
+                    }),
+                ];
+                for (x, y) in [(0, 0), (w / 2, h / 3), (w - 1, h - 1)] {
+                    let mut lanes = layout.pixel_sampler(x, y);
+                    let mut one = layout.pixel_sampler(x, y);
+                    for indices in &index_sets {
+                        for live in [0xFFu32, 0xA5, 0x01, 0x80, 0x3C] {
+                            for dim in [0u32, 1, 2, 7, 130, 1000] {
+                                let mut pair = [[-1.0f32; DRAW_LANES]; 2];
+                                let mut single = [[-1.0f32; DRAW_LANES]; 1];
+                                lanes.draw_lanes::<2>(dim, indices, live, &mut pair);
+                                lanes.draw_lanes::<1>(dim, indices, live, &mut single);
+                                for lane in 0..DRAW_LANES {
+                                    if live >> lane & 1 == 0 {
+                                        assert_eq!(pair[0][lane], -1.0);
+                                        assert_eq!(single[0][lane], -1.0);
+                                        continue;
+                                    }
+                                    one.start_sample(indices[lane], dim);
+                                    let want = one.next_2d();
+                                    one.start_sample(indices[lane], dim);
+                                    let want_1 = one.next_1d();
+                                    let what = std::format!(
+                                        "spp {spp} film {w}x{h} pixel ({x}, {y}) index {} dim {dim}",
+                                        indices[lane]
+                                    );
+                                    assert_eq!(pair[0][lane].to_bits(), want.x.to_bits(), "{what}");
+                                    assert_eq!(pair[1][lane].to_bits(), want.y.to_bits(), "{what}");
+                                    assert_eq!(
+                                        single[0][lane].to_bits(),
+                                        want_1.to_bits(),
+                                        "{what}"
+                                    );
+                                    checked += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 10_000, "{checked}");
     }
 }
