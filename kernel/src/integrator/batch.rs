@@ -22,7 +22,9 @@
 use super::path::PathState;
 use super::{dims, PathSettings, PathStrategy, PixelStats, SampleResult};
 use crate::camera::Camera;
-use crate::sampler::{IndependentSampler, Sampler, SamplerKind, Sampling, ZSobolPixelSampler};
+use crate::sampler::{
+    lanes_of, IndependentSampler, Sampler, SamplerKind, Sampling, ZSobolPixelSampler,
+};
 use crate::scene::SceneView;
 use crate::Rgb;
 use glam::Vec2;
@@ -46,10 +48,7 @@ pub trait PixelSamples: Sampler {
         live: u32,
         out: &mut [[f32; BATCH]; N],
     ) {
-        let mut rest = live;
-        while rest != 0 {
-            let lane = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
+        for lane in lanes_of(live) {
             self.start_sample(indices[lane], dimension);
             if N == 2 {
                 let v = self.next_2d();
@@ -332,10 +331,7 @@ fn batch<P: PixelSamples>(
         bounces += 1;
         let offsets = bounce_offsets(strategy, settings, bounces, &paths, live);
         draw_bounce(pixel, &indices, live, base, offsets, &mut numbers);
-        let mut rest = live;
-        while rest != 0 {
-            let lane = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
+        for lane in lanes_of(live) {
             let Some(path) = paths[lane].as_mut() else {
                 continue;
             };
@@ -359,12 +355,7 @@ fn batch<P: PixelSamples>(
         base = base.wrapping_add(dims::PER_BOUNCE);
     }
     for lane in 0..n {
-        let l = paths[lane].map_or(Rgb::ZERO, |p| p.l);
-        results[lane].l = if paths[lane].is_some() {
-            seen[lane] + l
-        } else {
-            Rgb::ZERO
-        };
+        results[lane].l = paths[lane].as_ref().map_or(Rgb::ZERO, |p| seen[lane] + p.l);
     }
     results
 }
@@ -387,10 +378,7 @@ fn bounce_offsets(
     if settings.roulette_applies(bounces) {
         offsets |= 1 << dims::ROULETTE;
     }
-    let mut rest = live;
-    while rest != 0 {
-        let lane = rest.trailing_zeros() as usize;
-        rest &= rest - 1;
+    for lane in lanes_of(live) {
         if paths[lane].is_some_and(|p| p.bsdf.uses_lobe_choice()) {
             offsets |= 1 << dims::BSDF_LOBE;
             break;

@@ -78,6 +78,20 @@ pub trait Sampler {
     fn dimension(&self) -> u32;
 }
 
+/// The lanes whose bits are set in `mask`, lowest first (the lane masks of batched draws,
+/// [`ZSobolPixelSampler::draw_lanes`]).
+#[inline(always)]
+pub fn lanes_of(mask: u32) -> impl Iterator<Item = usize> {
+    let mut rest = mask;
+    core::iter::from_fn(move || {
+        (rest != 0).then(|| {
+            let lane = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            lane
+        })
+    })
+}
+
 /// The default seed of the command-line renderer (`--seed`): 0x656D626572, "ember" in ASCII.
 pub const DEFAULT_SEED: u64 = 0x65_6D_62_65_72;
 

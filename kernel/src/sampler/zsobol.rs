@@ -19,7 +19,7 @@
 //!
 //! All of it is integer arithmetic: the samples are bit-identical on every target.
 
-use super::{mix64, Sampler};
+use super::{lanes_of, mix64, Sampler};
 use glam::Vec2;
 #[cfg(target_arch = "x86_64")]
 use wide::u32x8;
@@ -482,10 +482,7 @@ impl ZSobolPixelSampler {
         let (key, pixel_part) = self.memo(dimension);
         let capacity = self.layout.capacity();
         let mut lanes = live & ((1 << DRAW_LANES) - 1);
-        let mut rest = lanes;
-        while rest != 0 {
-            let lane = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
+        for lane in lanes_of(lanes) {
             if indices[lane] >= capacity {
                 // Past the layout, as `next` draws there.
                 let morton_index = self.pixel_index | u64::from(indices[lane]);
@@ -511,10 +508,7 @@ impl ZSobolPixelSampler {
                 ^ t[2][((a >> 16) & 0xFF) as usize]
                 ^ t[3][(a >> 24) as usize]
         });
-        let mut rest = lanes;
-        while rest != 0 {
-            let lane = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
+        for lane in lanes_of(lanes) {
             let index = pixel_part | parts[lane];
             points[0][lane] = index as u32;
             if N == 2 {
@@ -527,10 +521,7 @@ impl ZSobolPixelSampler {
         let seeds = [key as u32, (key >> 32) as u32];
         for k in 0..N {
             let high = scrambled_high_bits(points[k], seeds[k]);
-            let mut rest = lanes;
-            while rest != 0 {
-                let lane = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
+            for lane in lanes_of(lanes) {
                 out[k][lane] = high[lane] as f32 * (1.0 / (1u32 << 24) as f32);
             }
         }
@@ -558,10 +549,7 @@ impl ZSobolLayout {
             i -= 1;
             let shift = 2 * i - odd;
             let mut last: Option<(u64, usize)> = None;
-            let mut rest = lanes;
-            while rest != 0 {
-                let lane = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
+            for lane in lanes_of(lanes) {
                 let m = pixel_index | u64::from(indices[lane]);
                 let higher = m >> (shift + 2);
                 let p = match last {
@@ -578,10 +566,7 @@ impl ZSobolLayout {
         }
         if odd == 1 {
             let mut last: Option<(u64, u64)> = None;
-            let mut rest = lanes;
-            while rest != 0 {
-                let lane = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
+            for lane in lanes_of(lanes) {
                 let m = pixel_index | u64::from(indices[lane]);
                 let flip = match last {
                     Some((h, f)) if h == m >> 1 => f,
