@@ -1,11 +1,13 @@
 //! The scene as borrowed slices: what every integrator reads.
 
 use crate::bsdf::SurfaceBsdf;
-use crate::bvh::{closest, SceneBvh};
+use crate::bvh::{closest, lower_bound, SceneBvh};
 use crate::geometry::{
-    inset_barycentrics, triangle_point, Ray, TriangleHit, WatertightRay, GROUP_WIDTH,
+    inset_barycentrics, triangle_point, Ray, RayLanes, TriangleHit, WatertightRay, F8, GROUP_WIDTH,
+    PACKET,
 };
 use crate::math::Frame;
+use crate::sampler::lanes_of;
 use crate::texture::{Textures, NO_TEXTURE};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -313,6 +315,101 @@ impl<'a> SceneView<'a> {
             .traverse_leaves::<true, _>(ray.o, ray.d, ray.t_max, |first, count, t_max| {
                 self.leaf_hits::<true>(&wray, first, count, t_max, |_, h| Some(h.t))
             })
+    }
+
+    /// [`Self::intersect`] of each ray `rays[i]` whose bit is set in `live`, walking the tree
+    /// once for all of them ([`crate::bvh::WideBvh::traverse_packet`]): the same hits, bit for
+    /// bit (tests/tests/packets.rs). Lanes outside `live` are `None`.
+    #[must_use]
+    pub fn intersect_packet(&self, rays: &[Ray; PACKET], live: u32) -> [Option<Hit>; PACKET] {
+        let mut best: [Option<Hit>; PACKET] = [None; PACKET];
+        let live = live & ((1 << PACKET) - 1);
+        let SceneBvh::Wide(wide) = self.bvh else {
+            for lane in lanes_of(live) {
+                best[lane] = self.intersect(&rays[lane]);
+            }
+            return best;
+        };
+        let lanes = RayLanes::new(&rays.map(|r| r.o), &rays.map(|r| r.d));
+        let mut t_max = F8(rays.map(|r| r.t_max));
+        let walk = wide.traverse_packet::<false, _>(
+            &lanes,
+            &mut t_max,
+            live,
+            |first, count, mask, t_max| {
+                for slot in first..first + count {
+                    let (prim, [p0, p1, p2]) = self.slot_triangle(slot);
+                    let hits = lanes.intersect(t_max, p0, p1, p2, mask);
+                    for lane in lanes_of(hits.mask) {
+                        let t = hits.t.0[lane];
+                        if closest::precedes(t, prim, best[lane].map(|b| (b.t, b.triangle))) {
+                            best[lane] = Some(Hit {
+                                t,
+                                triangle: prim,
+                                b1: hits.b1.0[lane],
+                                b2: hits.b2.0[lane],
+                            });
+                            lower_bound(t_max, lane, t);
+                        }
+                    }
+                }
+                0
+            },
+        );
+        if walk.is_err() {
+            for lane in lanes_of(live) {
+                best[lane] = self.intersect(&rays[lane]);
+            }
+        }
+        best
+    }
+
+    /// [`Self::occluded`] of each ray `rays[i]` whose bit is set in `live`, as a bit mask,
+    /// walking the tree once for all of them: the same answers (tests/tests/packets.rs).
+    #[must_use]
+    pub fn occluded_packet(&self, rays: &[Ray; PACKET], live: u32) -> u32 {
+        let live = live & ((1 << PACKET) - 1);
+        let one_by_one = || {
+            lanes_of(live).fold(0u32, |m, lane| {
+                m | u32::from(self.occluded(&rays[lane])) << lane
+            })
+        };
+        let SceneBvh::Wide(wide) = self.bvh else {
+            return one_by_one();
+        };
+        let lanes = RayLanes::new(&rays.map(|r| r.o), &rays.map(|r| r.d));
+        let mut t_max = F8(rays.map(|r| r.t_max));
+        let walk = wide.traverse_packet::<true, _>(
+            &lanes,
+            &mut t_max,
+            live,
+            |first, count, mask, t_max| {
+                let mut hit = 0u32;
+                for slot in first..first + count {
+                    let (_, [p0, p1, p2]) = self.slot_triangle(slot);
+                    hit |= lanes.intersect(t_max, p0, p1, p2, mask & !hit).mask;
+                    if hit == mask {
+                        break;
+                    }
+                }
+                hit
+            },
+        );
+        walk.unwrap_or_else(|_| one_by_one())
+    }
+
+    /// The primitive at `slot` of the tree's primitive order and its vertices (from the leaf
+    /// groups where the tree has them).
+    #[inline(always)]
+    fn slot_triangle(&self, slot: u32) -> (u32, [Vec3; 3]) {
+        let prim = self.bvh.prim_order()[slot as usize];
+        let groups = self.bvh.leaf_groups();
+        if groups.is_empty() {
+            (prim, self.triangle_vertices(prim))
+        } else {
+            let s = slot as usize;
+            (prim, groups[s / GROUP_WIDTH].triangle(s % GROUP_WIDTH))
+        }
     }
 
     /// Tests the triangles of the leaf `prim_order[first .. first + count]` in slot order and

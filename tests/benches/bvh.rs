@@ -18,7 +18,10 @@
 //! collapse, as `ember` builds. Ray sets are traced through the four-wide tree the renderer uses
 //! with its leaves' triangles tested four at a time in SIMD lanes (`wide/...`), through the same
 //! tree testing one triangle at a time through the index buffer (`wide-scalar/...`: what the
-//! lane test buys), and through the binary tree as built (`binary/...`).
+//! lane test buys), through the binary tree as built (`binary/...`), and through the renderer's
+//! tree eight rays at a time (`wide-packet/...`: `SceneView::intersect_packet` and
+//! `occluded_packet` on consecutive rays of the set, which are neighbouring pixels for the
+//! camera set and unrelated rays for the others).
 //! Before the benchmarks the kernel scene memory per triangle is printed, and after them (under
 //! `cargo bench`) a summary of Mrays/s per scene with the ratio to the 1k scene.
 //!
@@ -29,7 +32,7 @@
 use criterion::{BatchSize, BenchmarkId, Criterion, SamplingMode, Throughput};
 use ember_kernel::bvh::{self, Bvh, BvhNode, WideBvh, WideNode};
 use ember_kernel::camera::Camera;
-use ember_kernel::geometry::{Aabb, Ray, TriangleGroup, GROUP_WIDTH};
+use ember_kernel::geometry::{Aabb, Ray, TriangleGroup, GROUP_WIDTH, PACKET};
 use ember_kernel::sampler::mix64;
 use ember_kernel::scene::{Material, SceneView};
 use ember_kernel::{Rgb, Vec2, Vec3};
@@ -260,10 +263,10 @@ impl Scene {
                     prim_order: &self.prim_order,
                 }
                 .into(),
-                Layout::Wide | Layout::WideScalar => WideBvh {
+                Layout::Wide | Layout::WideScalar | Layout::Packet => WideBvh {
                     nodes: &self.wide,
                     prim_order: &self.wide_order,
-                    leaf_groups: if layout == Layout::Wide {
+                    leaf_groups: if layout != Layout::WideScalar {
                         &self.leaf_groups
                     } else {
                         &[]
@@ -404,6 +407,40 @@ fn trace_shadow(view: &SceneView<'_>, rays: &[Ray]) -> u32 {
         .sum()
 }
 
+fn trace_closest_packets(view: &SceneView<'_>, rays: &[Ray]) -> u32 {
+    let mut hits = 0u32;
+    for chunk in rays.chunks_exact(PACKET) {
+        let packet: &[Ray; PACKET] = chunk.try_into().expect("chunks of PACKET");
+        for h in view
+            .intersect_packet(black_box(packet), 0xFF)
+            .into_iter()
+            .flatten()
+        {
+            hits = hits.wrapping_add(h.triangle);
+        }
+    }
+    hits
+}
+
+fn trace_shadow_packets(view: &SceneView<'_>, rays: &[Ray]) -> u32 {
+    rays.chunks_exact(PACKET)
+        .map(|chunk| {
+            let packet: &[Ray; PACKET] = chunk.try_into().expect("chunks of PACKET");
+            view.occluded_packet(black_box(packet), 0xFF).count_ones()
+        })
+        .sum()
+}
+
+/// The set's rays traced as `layout` traces them.
+fn trace(view: &SceneView<'_>, layout: Layout, shadow: bool, rays: &[Ray]) -> u32 {
+    match (layout == Layout::Packet, shadow) {
+        (false, false) => trace_closest(view, rays),
+        (false, true) => trace_shadow(view, rays),
+        (true, false) => trace_closest_packets(view, rays),
+        (true, true) => trace_shadow_packets(view, rays),
+    }
+}
+
 type RaySet = (&'static str, fn(&Scene) -> Vec<Ray>, bool);
 
 const RAY_SETS: [RaySet; 3] = [
@@ -449,10 +486,14 @@ enum Layout {
     WideScalar,
     /// The binary tree as built.
     Binary,
+    /// The renderer's tree, rays traced eight at a time in packets (consecutive rays of the
+    /// set: neighbouring pixels for camera rays, unrelated rays for the other sets).
+    Packet,
 }
 
-const LAYOUTS: [(&str, Layout); 3] = [
+const LAYOUTS: [(&str, Layout); 4] = [
     ("wide", Layout::Wide),
+    ("wide-packet", Layout::Packet),
     ("wide-scalar", Layout::WideScalar),
     ("binary", Layout::Binary),
 ];
@@ -473,11 +514,7 @@ fn bench_rays(c: &mut Criterion) {
                     let view = s.view(layout);
                     let rays = make(s);
                     assert_eq!(rays.len(), RAYS);
-                    if shadow {
-                        b.iter(|| trace_shadow(&view, &rays));
-                    } else {
-                        b.iter(|| trace_closest(&view, &rays));
-                    }
+                    b.iter(|| trace(&view, layout, shadow, &rays));
                 });
             }
         }
@@ -504,11 +541,7 @@ fn summary() {
             let best = (0..5)
                 .map(|_| {
                     let t = Instant::now();
-                    black_box(if shadow {
-                        trace_shadow(&view, &rays)
-                    } else {
-                        trace_closest(&view, &rays)
-                    });
+                    black_box(trace(&view, layout, shadow, &rays));
                     t.elapsed().as_secs_f64()
                 })
                 .fold(f64::MAX, f64::min);

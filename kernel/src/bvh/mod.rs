@@ -10,12 +10,14 @@
 mod build;
 pub mod closest;
 mod lanes;
+mod packet;
 mod traverse;
 mod wide;
 
 pub use build::{
     build, build_triangles, build_with, max_nodes, BvhError, MAX_DEPTH, MAX_LEAF_PRIMS, SAH_DEPTH,
 };
+pub use packet::{lower_bound, PacketOverflow, PACKET_STACK};
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 pub use wide::{
     align_leaves, aligned_order_len, collapse, gather_leaf_groups, max_wide_nodes, WideBvh,
