@@ -1,33 +1,35 @@
 //! The path tracers run [`BATCH`] samples of a pixel at a time, a bounce at a time: the
 //! driver of issue 14's lever 3 (many paths in SIMD lanes, the way Mitsuba 3's vectorised
-//! variants run). Each lane runs the one-path loop's own bounce ([`PathState::bounce`]), so a
-//! batched render is the scalar render bit for bit (tests/tests/batched.rs: every path tracer,
-//! both samplers, every BSDF). What the lanes share is done once for all of them: at a given
-//! bounce every lane draws the same dimensions, so their numbers are drawn together
+//! variants run). Each lane runs the one-path loop's own stages ([`PathState::light`],
+//! [`PathState::add_light`], [`PathState::scatter`], [`PathState::arrive`]), so a batched
+//! render is the scalar render bit for bit (tests/tests/batched.rs: every path tracer, both
+//! samplers, every BSDF). What the lanes share is done once for all of them: at a given bounce
+//! every lane draws the same dimensions, so their numbers are drawn together
 //! ([`PixelSamples::draw_lanes`]; for Sobol' samples the key and the pixel's digits once, the
-//! digit permutations once per run of lanes that share them, the scramble in SIMD lanes)
-//! before the lanes scatter one after another.
+//! digit permutations once per run of lanes that share them, the scramble in SIMD lanes), and
+//! the rays of a bounce are traced together: the camera rays always, the shadow and
+//! continuation rays up to bounce [`PACKET_BOUNCES`], as packets through the wide tree
+//! ([`SceneView::intersect_packet`], [`SceneView::occluded_packet`]), one ray per lane.
 //!
-//! Status: not used by the hosts yet, because it does not pay yet. On the project's Cornell box
-//! (MIS, 64 × 64, 16 spp, one thread) it executes 3.6% more instructions than the one-path loop
-//! in an x86-64-v3 build (1,377 M against 1,325 M; the sampler's share falls from about 241 M
-//! to 199 M, the lockstep costs more than that) and 9% more in the baseline build (1,748 M
-//! against 1,605 M); wall time
-//! is equal in the baseline build (256 × 256, 64 spp: 5.04 s against 5.10 s) but 1.5 times the
-//! scalar loop's in the v3 build (6.8 s against 4.55 s), a stall that cachegrind's counts
-//! (instructions +1.7%, branch mispredictions +0.8 M, D1 misses equal) do not show and that is
-//! not yet understood. The stages to vectorise next are the surface interaction, emitter
-//! sampling and the BSDFs.
+//! Status: not used by the hosts, because it does not pay yet. On the project's Cornell box
+//! (MIS, 64 × 64, 16 spp, one thread, x86-64-v3 build on an AMD EPYC) it executes 0.8% more
+//! instructions than the one-path loop (1,374.1 M against 1,362.6 M; with packets for no
+//! bounce beyond the camera 1,393.5 M, to bounce 2 1,378.2 M, for every bounce 1,544.1 M:
+//! packets pay only while a pixel's rays are coherent), and its wall time is 5 to 10% longer
+//! (256 × 192, 32 spp: 2.9 to 3.1 s against 2.7 to 2.9 s; TinyRender's 32k-triangle box 5.4
+//! to 5.7 s against 4.9 to 5.2 s). The lanes still shade one after another; the stages to
+//! vectorise next are the surface interaction, emitter sampling and the BSDFs.
 
-use super::path::PathState;
+use super::path::{NextRay, PathState, ShadowQuery};
 use super::{dims, PathSettings, PathStrategy, PixelStats, SampleResult};
 use crate::camera::Camera;
+use crate::geometry::Ray;
 use crate::sampler::{
     lanes_of, IndependentSampler, Sampler, SamplerKind, Sampling, ZSobolPixelSampler,
 };
-use crate::scene::SceneView;
+use crate::scene::{Hit, SceneView};
 use crate::Rgb;
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 
 /// Samples in flight together.
 pub const BATCH: usize = 8;
@@ -143,6 +145,26 @@ struct LaneSampler<'a, P> {
     index: u32,
     dimension: u32,
     pixel: &'a mut P,
+}
+
+impl<'a, P> LaneSampler<'a, P> {
+    /// Lane `lane` (sample `index`) at the bounce whose dimensions start at `base`.
+    #[inline(always)]
+    fn at(
+        numbers: &'a BounceNumbers,
+        lane: usize,
+        index: u32,
+        base: u32,
+        pixel: &'a mut P,
+    ) -> Self {
+        Self {
+            numbers,
+            lane,
+            index,
+            dimension: base,
+            pixel,
+        }
+    }
 }
 
 impl<P: PixelSamples> Sampler for LaneSampler<'_, P> {
@@ -306,15 +328,21 @@ fn batch<P: PixelSamples>(
     // it.
     let mut seen = [Rgb::ZERO; BATCH];
     let mut paths: [Option<PathState>; BATCH] = [None; BATCH];
-    let mut live = 0u32;
+    let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+    let used = (1u32 << n) - 1;
     for lane in 0..n {
         pixel.start_sample(indices[lane], 0);
-        let ray = camera.generate_ray(x, y, dims::camera(pixel));
+        camera_rays[lane] = camera.generate_ray(x, y, dims::camera(pixel));
         results[lane].rays += 1;
-        let Some(hit) = scene.intersect(&ray) else {
+    }
+    // A pixel's camera rays are nearly one ray: traced as a packet.
+    let hits = scene.intersect_packet(&camera_rays, used);
+    let mut live = 0u32;
+    for lane in 0..n {
+        let Some(hit) = hits[lane] else {
             continue;
         };
-        let si = scene.interaction(&ray, &hit);
+        let si = scene.interaction(&camera_rays[lane], &hit);
         let bsdf = scene.bsdf_at(&si);
         seen[lane] = scene.emitted(&si);
         paths[lane] = Some(PathState::new(si, bsdf));
@@ -327,28 +355,65 @@ fn batch<P: PixelSamples>(
     };
     let mut base = dims::CAMERA;
     let mut bounces = 0u32;
+    let mut us = [None; BATCH];
+    let mut shadows = [None; BATCH];
+    let mut nexts = [None; BATCH];
     while live != 0 {
         bounces += 1;
         let offsets = bounce_offsets(strategy, settings, bounces, &paths, live);
         draw_bounce(pixel, &indices, live, base, offsets, &mut numbers);
+        // Each lane's next-event estimate, then all their shadow rays.
+        let mut shadow_lanes = 0u32;
         for lane in lanes_of(live) {
             let Some(path) = paths[lane].as_mut() else {
                 continue;
             };
-            let mut sampler = LaneSampler {
-                numbers: &numbers,
-                lane,
-                index: indices[lane],
-                dimension: base,
-                pixel: &mut *pixel,
-            };
-            if !path.bounce(
+            match path.light(
                 scene,
                 settings,
                 strategy,
-                &mut sampler,
-                &mut results[lane].rays,
+                &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
             ) {
+                None => live &= !(1 << lane),
+                Some((u, shadow)) => {
+                    us[lane] = Some(u);
+                    shadows[lane] = shadow;
+                    if shadow.is_some() {
+                        shadow_lanes |= 1 << lane;
+                        results[lane].rays += 1;
+                    }
+                }
+            }
+        }
+        let occluded = trace_shadows(scene, &shadows, shadow_lanes, bounces);
+        for lane in lanes_of(shadow_lanes) {
+            if let (Some(path), Some(shadow)) = (paths[lane].as_mut(), shadows[lane].as_ref()) {
+                path.add_light(shadow, occluded >> lane & 1 == 0);
+            }
+        }
+        // Each lane's scattered ray, then all of them.
+        for lane in lanes_of(live) {
+            let (Some(path), Some(u)) = (paths[lane].as_mut(), us[lane]) else {
+                continue;
+            };
+            nexts[lane] = path.scatter(
+                settings,
+                strategy,
+                &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
+                u,
+            );
+            if nexts[lane].is_some() {
+                results[lane].rays += 1;
+            } else {
+                live &= !(1 << lane);
+            }
+        }
+        let hits = trace_next(scene, settings, &nexts, live, bounces);
+        for lane in lanes_of(live) {
+            let (Some(path), Some(next)) = (paths[lane].as_mut(), nexts[lane].as_ref()) else {
+                continue;
+            };
+            if !path.arrive(scene, strategy, next, hits[lane]) {
                 live &= !(1 << lane);
             }
         }
@@ -358,6 +423,59 @@ fn batch<P: PixelSamples>(
         results[lane].l = paths[lane].as_ref().map_or(Rgb::ZERO, |p| seen[lane] + p.l);
     }
     results
+}
+
+/// Bounces up to which a batch traces its rays as packets: a pixel's paths start close
+/// together and spread out as they bounce.
+pub const PACKET_BOUNCES: u32 = 1;
+
+/// Whether the shadow rays of `lanes` are occluded (bits).
+#[inline(always)]
+fn trace_shadows(
+    scene: &SceneView<'_>,
+    shadows: &[Option<ShadowQuery>; BATCH],
+    lanes: u32,
+    bounces: u32,
+) -> u32 {
+    if bounces <= PACKET_BOUNCES && lanes.count_ones() > 1 {
+        let rays = shadows.map(|s| s.map_or(Ray::new(Vec3::ZERO, Vec3::Z), |s| s.ray));
+        return scene.occluded_packet(&rays, lanes);
+    }
+    lanes_of(lanes).fold(0, |m, lane| {
+        let occluded = shadows[lane].is_some_and(|s| scene.occluded(&s.ray));
+        m | u32::from(occluded) << lane
+    })
+}
+
+/// Where the rays of `lanes` land ([`NextRay::trace`]).
+#[inline(always)]
+fn trace_next(
+    scene: &SceneView<'_>,
+    settings: &PathSettings,
+    nexts: &[Option<NextRay>; BATCH],
+    lanes: u32,
+    bounces: u32,
+) -> [Option<Hit>; BATCH] {
+    let mut hits = [None; BATCH];
+    let mut rest = lanes;
+    if bounces <= PACKET_BOUNCES {
+        // Terminal rays take their own shortcut; the others go as a packet.
+        let mut packet = 0u32;
+        for lane in lanes_of(lanes) {
+            if nexts[lane].is_some_and(|n| !n.terminal) {
+                packet |= 1 << lane;
+            }
+        }
+        if packet.count_ones() > 1 {
+            let rays = nexts.map(|n| n.map_or(Ray::new(Vec3::ZERO, Vec3::Z), |n| n.ray));
+            hits = scene.intersect_packet(&rays, packet);
+            rest &= !packet;
+        }
+    }
+    for lane in lanes_of(rest) {
+        hits[lane] = nexts[lane].and_then(|n| n.trace(scene, settings));
+    }
+    hits
 }
 
 /// The dimensions (bits: offsets of [`dims`]) some lane of `live` may draw at bounce number

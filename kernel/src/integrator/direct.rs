@@ -2,7 +2,7 @@
 
 use crate::bsdf::{BsdfView, TransportMode};
 use crate::emitter::sample_emitter;
-use crate::geometry::spawn_ray_to;
+use crate::geometry::{spawn_ray_to, Ray};
 use crate::math::SolidAnglePdf;
 use crate::scene::{SceneView, SurfaceInteraction};
 use crate::Rgb;
@@ -36,6 +36,23 @@ pub fn sample_direct(
     with_bsdf_pdf: bool,
     rays: &mut u32,
 ) -> Option<DirectSample> {
+    let (d, shadow) = sample_direct_unoccluded(scene, si, bsdf, u_select, u_light, with_bsdf_pdf)?;
+    *rays += 1;
+    (!scene.occluded(&shadow)).then_some(d)
+}
+
+/// [`sample_direct`] but for its shadow ray, which is returned for the caller to trace (the
+/// sample counts only if the ray is unoccluded): what a driver that traces the shadow rays of
+/// many paths together ([`super::render_pixel_batched`]) needs.
+#[inline]
+pub fn sample_direct_unoccluded(
+    scene: &SceneView<'_>,
+    si: &SurfaceInteraction,
+    bsdf: &BsdfView<'_>,
+    u_select: f32,
+    u_light: Vec2,
+    with_bsdf_pdf: bool,
+) -> Option<(DirectSample, Ray)> {
     let es = sample_emitter(scene, u_select, u_light)?;
     let to_light = es.p - si.p;
     let dist2 = to_light.length_squared();
@@ -57,15 +74,14 @@ pub fn sample_direct(
         return None;
     }
     let shadow = spawn_ray_to(si.p_spawn, si.p_err, si.ng, es.p, es.p_err, es.ng);
-    *rays += 1;
-    if scene.occluded(&shadow) {
-        return None;
-    }
     let pdf = es.pdf.to_solid_angle(dist2, cos_light);
-    Some(DirectSample {
-        contribution: f * es.radiance * (bsdf.abs_cos(wi) / pdf.0),
-        wi,
-        pdf,
-        pdf_bsdf,
-    })
+    Some((
+        DirectSample {
+            contribution: f * es.radiance * (bsdf.abs_cos(wi) / pdf.0),
+            wi,
+            pdf,
+            pdf_bsdf,
+        },
+        shadow,
+    ))
 }

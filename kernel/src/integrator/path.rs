@@ -2,14 +2,14 @@
 //! event) is the same for every estimator, and whose differences are the named fields of a
 //! [`PathStrategy`] (Mitsuba 3's `path.cpp` keeps one loop state the same way).
 
-use super::direct::sample_direct;
+use super::direct::{sample_direct_unoccluded, DirectSample};
 use super::{dims, PathSettings};
 use crate::bsdf::{BsdfFlags, SurfaceBsdf, TransportMode};
 use crate::emitter::emitter_pdf;
 use crate::geometry::Ray;
 use crate::math::SolidAnglePdf;
 use crate::sampler::Sampler;
-use crate::scene::{SceneView, SurfaceInteraction};
+use crate::scene::{Hit, SceneView, SurfaceInteraction};
 use crate::Rgb;
 
 /// How light arriving directly from emitters is found at each scattering vertex.
@@ -151,6 +151,10 @@ impl PathState {
     /// plays roulette, traces the ray and counts the emission it finds. Returns whether the
     /// path goes on from a new vertex; the sampler must be at the vertex's first dimension
     /// ([`dims::BounceDims`]), and is left at the next vertex's.
+    ///
+    /// The bounce is its three steps with the rays traced between them, which is how a driver
+    /// that traces the rays of many paths together runs it: [`Self::light`], the shadow ray,
+    /// [`Self::scatter`], the scattered ray, [`Self::arrive`].
     #[inline(always)]
     pub fn bounce<S: Sampler>(
         &mut self,
@@ -160,33 +164,85 @@ impl PathState {
         sampler: &mut S,
         rays: &mut u32,
     ) -> bool {
+        let Some((u, shadow)) = self.light(scene, settings, strategy, sampler) else {
+            return false;
+        };
+        if let Some(shadow) = shadow {
+            *rays += 1;
+            self.add_light(&shadow, !scene.occluded(&shadow.ray));
+        }
+        let Some(next) = self.scatter(settings, strategy, sampler, u) else {
+            return false;
+        };
+        *rays += 1;
+        let hit = next.trace(scene, settings);
+        self.arrive(scene, strategy, &next, hit)
+    }
+
+    /// Starts a bounce: counts the vertex and samples its next-event estimate. `None` if the
+    /// path may not scatter here; otherwise the vertex's numbers and the shadow ray to trace
+    /// with the light it brings (which [`Self::add_light`] adds if the ray is unoccluded).
+    #[inline(always)]
+    pub fn light<S: Sampler>(
+        &mut self,
+        scene: &SceneView<'_>,
+        settings: &PathSettings,
+        strategy: &PathStrategy,
+        sampler: &mut S,
+    ) -> Option<(dims::BounceDims, Option<ShadowQuery>)> {
         // `si` is scattering vertex number `bounces`; light reaching it directly completes a
         // path with `bounces` scattering vertices.
         self.bounces += 1;
-        let bounces = self.bounces;
-        if !settings.allows(bounces) {
-            return false;
+        if !settings.allows(self.bounces) {
+            return None;
         }
         let si = &self.si;
         let bsdf = &self.bsdf;
-        let view = bsdf.seen_from(si.wo);
-        let flags = bsdf.flags();
-        let next_event = strategy.direct != DirectLighting::BsdfSampling && flags.is_non_specular();
+        let next_event =
+            strategy.direct != DirectLighting::BsdfSampling && bsdf.flags().is_non_specular();
         // This vertex's numbers, each drawn only if it is used (the same numbers as drawing
         // them all: `dims::BounceDims`).
         let u = dims::BounceDims::start(sampler);
-        if next_event {
-            let mis = strategy.direct == DirectLighting::Mis;
-            let (u_select, u_light) = u.light(sampler);
-            if let Some(d) = sample_direct(scene, si, &view, u_select, u_light, mis, rays) {
-                let w = if mis {
-                    power_heuristic(d.pdf, d.pdf_bsdf)
-                } else {
-                    1.0
-                };
-                self.l += self.beta * d.contribution * w;
-            }
+        if !next_event {
+            return Some((u, None));
         }
+        let mis = strategy.direct == DirectLighting::Mis;
+        let (u_select, u_light) = u.light(sampler);
+        let view = bsdf.seen_from(si.wo);
+        let shadow = sample_direct_unoccluded(scene, si, &view, u_select, u_light, mis)
+            .map(|(sample, ray)| ShadowQuery { ray, sample, mis });
+        Some((u, shadow))
+    }
+
+    /// Adds the light of `shadow` if its ray is `unoccluded` (weighted only then: many of a
+    /// closed scene's shadow rays are blocked).
+    #[inline(always)]
+    pub fn add_light(&mut self, shadow: &ShadowQuery, unoccluded: bool) {
+        if unoccluded {
+            let d = &shadow.sample;
+            let w = if shadow.mis {
+                power_heuristic(d.pdf, d.pdf_bsdf)
+            } else {
+                1.0
+            };
+            self.l += self.beta * d.contribution * w;
+        }
+    }
+
+    /// Samples the direction the path leaves the vertex in and plays roulette: the ray to
+    /// trace next, or `None` if the path ends here.
+    #[inline(always)]
+    pub fn scatter<S: Sampler>(
+        &mut self,
+        settings: &PathSettings,
+        strategy: &PathStrategy,
+        sampler: &mut S,
+        u: dims::BounceDims,
+    ) -> Option<NextRay> {
+        let bounces = self.bounces;
+        let si = &self.si;
+        let bsdf = &self.bsdf;
+        let flags = bsdf.flags();
         // The ray leaving the last vertex of a bounded path matters only for the emission it
         // may find, which next-event estimation has counted unless the bounce is a delta one.
         let terminal = settings.is_terminal(bounces);
@@ -194,20 +250,19 @@ impl PathState {
             && strategy.direct == DirectLighting::NextEvent
             && !flags.contains(BsdfFlags::SPECULAR)
         {
-            return false;
+            return None;
         }
         let lobe = if bsdf.uses_lobe_choice() {
             u.lobe(sampler)
         } else {
             0.0
         };
-        let Some(s) = view.sample(lobe, u.direction(sampler), TransportMode::Radiance) else {
-            return false;
-        };
+        let view = bsdf.seen_from(si.wo);
+        let s = view.sample(lobe, u.direction(sampler), TransportMode::Radiance)?;
         // Emission found by the sampled ray counts unless next-event estimation has it.
         let counts_emission = strategy.direct != DirectLighting::NextEvent || s.flags.is_specular();
         if terminal && !counts_emission {
-            return false;
+            return None;
         }
         self.beta *= s.weight;
         if s.flags.is_transmission() {
@@ -228,42 +283,92 @@ impl PathState {
             ),
         };
         if !survives {
-            return false;
+            return None;
         }
         u.finish(sampler);
-        let next = si.spawn_ray(s.wi);
-        *rays += 1;
-        let hit = if terminal {
-            settings.terminal_hit(scene, &next)
-        } else {
-            scene.intersect(&next)
-        };
+        Some(NextRay {
+            ray: si.spawn_ray(s.wi),
+            terminal,
+            counts_emission,
+            specular: s.flags.is_specular(),
+            pdf: s.pdf,
+        })
+    }
+
+    /// Ends the bounce where the ray `next` landed (`hit`, from [`NextRay::trace`]): counts the
+    /// emission found there and moves the path to the new vertex. Returns whether the path
+    /// goes on.
+    #[inline(always)]
+    pub fn arrive(
+        &mut self,
+        scene: &SceneView<'_>,
+        strategy: &PathStrategy,
+        next: &NextRay,
+        hit: Option<Hit>,
+    ) -> bool {
         let Some(hit) = hit else {
             return false;
         };
-        let prev_p = si.p;
-        self.si = scene.interaction(&next, &hit);
+        let prev_p = self.si.p;
+        self.si = scene.interaction(&next.ray, &hit);
         let si = &self.si;
-        if counts_emission {
+        if next.counts_emission {
             let le = scene.emitted(si);
             if le != Rgb::ZERO {
                 // A delta bounce has no next-event estimate to share the light with.
-                let w = if strategy.direct == DirectLighting::Mis && !s.flags.is_specular() {
+                let w = if strategy.direct == DirectLighting::Mis && !next.specular {
                     let dist2 = (si.p - prev_p).length_squared();
-                    let cos_light = si.frame.n.dot(-s.wi);
+                    let cos_light = si.frame.n.dot(-next.ray.d);
                     let pdf_light =
                         emitter_pdf(scene, si.triangle).to_solid_angle(dist2, cos_light);
-                    power_heuristic(s.pdf, pdf_light)
+                    power_heuristic(next.pdf, pdf_light)
                 } else {
                     1.0
                 };
                 self.l += self.beta * le * w;
             }
         }
-        if terminal {
+        if next.terminal {
             return false;
         }
         self.bsdf = scene.bsdf_at(si);
         true
+    }
+}
+
+/// A vertex's next-event shadow ray and the emitter sample it tests, which adds to the path's
+/// radiance if the ray is unoccluded ([`PathState::add_light`]).
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowQuery {
+    pub ray: Ray,
+    pub sample: DirectSample,
+    /// Weighted against BSDF sampling (MIS).
+    pub mis: bool,
+}
+
+/// The ray a path leaves a vertex along, with what [`PathState::arrive`] needs of its sample.
+#[derive(Clone, Copy, Debug)]
+pub struct NextRay {
+    pub ray: Ray,
+    /// The last ray of a bounded path (only emission it finds matters).
+    pub terminal: bool,
+    /// Whether emission it finds counts (next-event estimation has not counted it).
+    pub counts_emission: bool,
+    /// Sampled from a delta lobe.
+    pub specular: bool,
+    /// Solid-angle density of its direction.
+    pub pdf: SolidAnglePdf,
+}
+
+impl NextRay {
+    /// Traces the ray: its closest hit, or for a terminal ray only a hit on an emitter.
+    #[inline(always)]
+    #[must_use]
+    pub fn trace(&self, scene: &SceneView<'_>, settings: &PathSettings) -> Option<Hit> {
+        if self.terminal {
+            settings.terminal_hit(scene, &self.ray)
+        } else {
+            scene.intersect(&self.ray)
+        }
     }
 }
