@@ -12,7 +12,8 @@
 
 use crate::error::{Error, Result};
 use crate::LoadedScene;
-use ember_kernel::integrator::{bake_vertex, BakeEstimator, BakePoint, PathSettings};
+use ember_kernel::integrator::{bake_vertex, BakeEstimator, BakePoint, BakeSamples, PathSettings};
+use ember_kernel::sampler::SamplerKind;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -46,6 +47,8 @@ pub struct BakeSettings {
     pub vertex_inset: f32,
     /// MIS (default) or TinyRender's explicit path tracer.
     pub estimator: BakeEstimator,
+    /// Owen-scrambled Sobol' points per vertex (default) or independent numbers.
+    pub sampler: SamplerKind,
 }
 
 /// Parses `--bake-estimator` (`mis` or `explicit`).
@@ -165,20 +168,17 @@ pub fn bake(scene: &LoadedScene, s: &BakeSettings) -> Result<(BakedMesh, BakeRep
         .num_threads(s.threads)
         .build()
         .map_err(|e| Error::new(format!("cannot create worker threads: {e}")))?;
+    let samples = BakeSamples {
+        sampler: s.sampler,
+        seed: s.seed,
+        per_vertex: s.samples_per_vertex,
+    };
     let radiance: Vec<[f32; 3]> = pool.install(|| {
         points
             .par_iter()
             .enumerate()
             .map(|(k, point)| {
-                let l = bake_vertex(
-                    &view,
-                    point,
-                    &s.path,
-                    s.estimator,
-                    s.seed,
-                    k as u64,
-                    s.samples_per_vertex,
-                );
+                let l = bake_vertex(&view, point, &s.path, s.estimator, &samples, k as u64);
                 if k % 64 == 0 {
                     bar.inc(64);
                 }
@@ -221,6 +221,10 @@ pub fn provenance(scene: &LoadedScene, s: &BakeSettings) -> Vec<(String, String)
         ("rr_prob".into(), s.path.rr_prob.to_string()),
         ("vertex_inset".into(), s.vertex_inset.to_string()),
         ("estimator".into(), format!("{:?}", s.estimator)),
+        (
+            "sampler".into(),
+            crate::bench::sampler_name(s.sampler).into(),
+        ),
         // A hash of the kernel's and the baker's sources (build.rs): a bake made by other
         // code is never reused.
         ("code".into(), env!("EMBER_BAKE_CODE_HASH").into()),
@@ -456,6 +460,7 @@ mod tests {
             progress: false,
             vertex_inset: BAKE_INSET,
             estimator: BakeEstimator::Mis,
+            sampler: SamplerKind::ZSobol,
         }
     }
 

@@ -125,6 +125,10 @@ struct Cli {
     /// explicit` the bake is TinyRender's.
     #[arg(long, value_parser = ember_cli::bake::parse_estimator, default_value = "mis")]
     bake_estimator: ember_kernel::integrator::BakeEstimator,
+    /// Sample sequence of each vertex of the bake: zsobol (default), Owen-scrambled Sobol'
+    /// points of its own, or independent.
+    #[arg(long, value_parser = ember_cli::bench::parse_sampler, default_value = "zsobol")]
+    bake_sampler: ember_kernel::sampler::SamplerKind,
 }
 
 /// More worker threads than this is a typo, not a machine.
@@ -254,6 +258,7 @@ fn run(a: &Cli) -> Result<(), ViewerError> {
         progress: !a.quiet,
         vertex_inset: a.vertex_inset,
         estimator: a.bake_estimator,
+        sampler: a.bake_sampler,
     };
     // The default bake file sits beside the scene. A folder marked read-only (the shared
     // TinyRender data) is respected even by root, who could write there: the bake is then

@@ -12,9 +12,10 @@ use ember_kernel::bvh::{self, Bvh, BvhNode};
 use ember_kernel::camera::Camera;
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
 use ember_kernel::integrator::{
-    bake_vertex, render_pixel, BakeEstimator, BakePoint, Integrator, PathSettings, PixelStats,
+    bake_vertex, render_pixel, BakeEstimator, BakePoint, BakeSamples, Integrator, PathSettings,
+    PixelStats,
 };
-use ember_kernel::sampler::DEFAULT_SEED;
+use ember_kernel::sampler::{SamplerKind, DEFAULT_SEED};
 use ember_kernel::scene::{Material, SceneView};
 use ember_kernel::{Rgb, Vec3};
 
@@ -199,9 +200,12 @@ fn main() {
             ..PathSettings::default()
         },
         BakeEstimator::Mis,
-        DEFAULT_SEED,
+        &BakeSamples {
+            sampler: SamplerKind::ZSobol,
+            seed: DEFAULT_SEED,
+            per_vertex: 256,
+        },
         0,
-        256,
     );
     println!("baked radiance at the floor point {baked:.4}");
 }

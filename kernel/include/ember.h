@@ -291,7 +291,10 @@ typedef struct EmberSettings {
   uint32_t bake_estimator;
   // The seed: equal seeds give equal images.
   uint64_t seed;
-  // `EMBER_SAMPLER_*` (rendering only; the bake uses independent numbers). Since version 4.
+  // `EMBER_SAMPLER_*`. Since version 4. A bake reads it too (within version 5, since the
+  // bake gained Owen-scrambled Sobol' points): `EMBER_SAMPLER_DEFAULT` and
+  // `EMBER_SAMPLER_ZSOBOL` give each point Sobol' points of its own, as `ember bake` does,
+  // `EMBER_SAMPLER_INDEPENDENT` the independent numbers of earlier libraries.
   uint32_t sampler;
 } EmberSettings;
 

@@ -180,8 +180,8 @@ use crate::emitter::{build_emitter_table, EmitterTableError};
 use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::integrator::bdpt::{self, Vertex, CAMERA_PATH_VERTICES, LIGHT_PATH_VERTICES};
 use crate::integrator::{
-    bake_vertex, render_pixel, BakeEstimator, BakePoint, BdptScratch, BdptSink, Integrator,
-    MisHeuristic, PathSettings, PixelStats,
+    bake_vertex, render_pixel, BakeEstimator, BakePoint, BakeSamples, BdptScratch, BdptSink,
+    Integrator, MisHeuristic, PathSettings, PixelStats,
 };
 use crate::material::{PhongParams, Reflectance, Surface};
 use crate::sampler::{SamplerKind, Sampling};
@@ -430,7 +430,10 @@ pub struct EmberSettings {
     pub bake_estimator: u32,
     /// The seed: equal seeds give equal images.
     pub seed: u64,
-    /// `EMBER_SAMPLER_*` (rendering only; the bake uses independent numbers). Since version 4.
+    /// `EMBER_SAMPLER_*`. Since version 4. A bake reads it too (within version 5, since the
+    /// bake gained Owen-scrambled Sobol' points): `EMBER_SAMPLER_DEFAULT` and
+    /// `EMBER_SAMPLER_ZSOBOL` give each point Sobol' points of its own, as `ember bake` does,
+    /// `EMBER_SAMPLER_INDEPENDENT` the independent numbers of earlier libraries.
     pub sampler: u32,
 }
 
@@ -2137,6 +2140,16 @@ unsafe fn ember_bake_vertices_impl(
         EMBER_BAKE_EXPLICIT => BakeEstimator::Explicit,
         _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
     };
+    let sampler = match settings.sampler {
+        EMBER_SAMPLER_DEFAULT | EMBER_SAMPLER_ZSOBOL => SamplerKind::ZSobol,
+        EMBER_SAMPLER_INDEPENDENT => SamplerKind::Independent,
+        _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
+    };
+    let samples = BakeSamples {
+        sampler,
+        seed: settings.seed,
+        per_vertex: settings.spp,
+    };
     if points
         .iter()
         .any(|p| p.material as usize >= view.materials.len())
@@ -2153,15 +2166,7 @@ unsafe fn ember_bake_vertices_impl(
             material: p.material,
             uv: Vec2::from_array(p.uv),
         };
-        let l = bake_vertex(
-            &view,
-            &point,
-            &path,
-            estimator,
-            settings.seed,
-            u64::from(p.key),
-            settings.spp,
-        );
+        let l = bake_vertex(&view, &point, &path, estimator, &samples, u64::from(p.key));
         px.copy_from_slice(&l.to_array());
     }
     Ok(())

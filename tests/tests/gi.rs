@@ -55,6 +55,9 @@ fn baked(scene: &LoadedScene, seed: u64, inset: f32, estimator: BakeEstimator) -
             progress: false,
             vertex_inset: inset,
             estimator,
+            // The noise model scales the measured variance to the reference's 300 paths, so
+            // both must be independent samples (TinyRender's are).
+            sampler: ember_kernel::sampler::SamplerKind::Independent,
         },
     )
     .unwrap()

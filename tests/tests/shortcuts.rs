@@ -124,6 +124,7 @@ fn bake_with_shortcuts_is_bit_identical() {
                 progress: false,
                 vertex_inset: BAKE_INSET,
                 estimator: BakeEstimator::Mis,
+                sampler: ember_kernel::sampler::SamplerKind::ZSobol,
             },
         )
         .unwrap()

@@ -325,6 +325,7 @@ fn bake_reads_each_vertex_texel_and_keeps_seams_apart() {
         progress: false,
         vertex_inset: ember_cli::bake::BAKE_INSET,
         estimator: BakeEstimator::Mis,
+        sampler: ember_kernel::sampler::SamplerKind::ZSobol,
     };
     let (mesh, report) = bake(&scene, &settings).unwrap();
     let floor = &scene.data.objects[0];

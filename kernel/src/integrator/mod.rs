@@ -22,7 +22,7 @@ mod direct;
 mod light_tracer;
 mod path;
 
-pub use bake::{bake_vertex, BakeEstimator, BakePoint};
+pub use bake::{bake_vertex, BakeEstimator, BakePoint, BakeSamples};
 pub use batch::{render_pixel_batched, IndependentPixel, PixelSamples, BATCH};
 pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};

@@ -21,11 +21,11 @@ use ember_kernel::camera::Camera;
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
 use ember_kernel::geometry::{TriangleGroup, GROUP_WIDTH};
 use ember_kernel::integrator::{
-    bake_vertex, render_pixel, BakeEstimator, BakePoint, BdptScratch, Integrator, MisHeuristic,
-    PathSettings, PixelStats, Shortcuts,
+    bake_vertex, render_pixel, BakeEstimator, BakePoint, BakeSamples, BdptScratch, Integrator,
+    MisHeuristic, PathSettings, PixelStats, Shortcuts,
 };
 use ember_kernel::material::{PhongParams, Reflectance, Surface};
-use ember_kernel::sampler::{Sampling, DEFAULT_SEED};
+use ember_kernel::sampler::{SamplerKind, Sampling, DEFAULT_SEED};
 use ember_kernel::scene::{Material, SceneView};
 pub use ember_kernel::splat::SplatBuffer;
 use ember_kernel::texture::{Texture, Textures, NO_TEXTURE};
@@ -829,9 +829,12 @@ pub fn bake_point(scene: &SceneView<'_>, estimator: BakeEstimator, i: usize) -> 
         &point,
         &BAKE_PATH,
         estimator,
-        SEED,
+        &BakeSamples {
+            sampler: SamplerKind::ZSobol,
+            seed: SEED,
+            per_vertex: BAKE_SAMPLES,
+        },
         i as u64,
-        BAKE_SAMPLES,
     )
     .to_array()
 }
