@@ -43,12 +43,17 @@ echo "== cargo test (release: the statistical tests run too)"
 cargo test --workspace --release
 echo "== determinism across builds and targets (scripts/determinism.sh)"
 ./scripts/determinism.sh
-echo "== the kernel built for AVX (eight-wide BVH nodes, kernel/src/bvh/lanes.rs): clippy, unit, BVH and stress suites"
-# The default build has four-wide nodes; the eight-wide tree and its lanes are only compiled
-# for AVX. Same flags and target directory as determinism.sh's x86-64-v3 build; a CPU without
-# AVX2 runs the tests on qemu's emulated one.
+echo "== the kernel built for AVX and for aarch64 (kernel/src/bvh/lanes.rs): clippy, unit, BVH and stress suites"
+# The default build's eight-wide nodes are tested in SSE register pairs; here their AVX
+# encoding, and the four-wide tree of every target but x86-64 (NEON, under qemu-user as in
+# determinism.sh, which installed it). Same flags and target directory as determinism.sh's
+# x86-64-v3 build; a CPU without AVX2 runs the tests on qemu's emulated one.
 v3=(--release -p ember-kernel --target-dir "$CARGO_TARGET_DIR/determinism/x86-64-v3")
 runner=()
 grep -qw avx2 /proc/cpuinfo || runner=(--config 'target.x86_64-unknown-linux-gnu.runner="qemu-x86_64-static -cpu max"')
 RUSTFLAGS="-C target-cpu=x86-64-v3" cargo clippy "${v3[@]}" --all-targets -- -D warnings
 RUSTFLAGS="-C target-cpu=x86-64-v3" cargo test "${v3[@]}" "${runner[@]}" --lib --test bvh --test stress
+CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc \
+    cargo test --release -p ember-kernel --target aarch64-unknown-linux-gnu \
+    --config 'target.aarch64-unknown-linux-gnu.runner="qemu-aarch64-static -L /usr/aarch64-linux-gnu"' \
+    --lib --test bvh --test stress

@@ -62,7 +62,7 @@ export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/ember-target}"
 echo "== cargo build --release -p ember-tests --bin ember-bvh-embree"
 (cd "$ROOT" && cargo build --release --quiet -p ember-tests --bin ember-bvh-embree)
 BIN="$CARGO_TARGET_DIR/release/ember-bvh-embree"
-# The same bench built for this CPU (AVX builds get eight-wide BVH nodes, kernel/src/bvh/lanes.rs),
+# The same bench built for this CPU (AVX registers for the eight-wide BVH nodes, kernel/src/bvh/lanes.rs),
 # as Embree picks its AVX2/AVX-512 kernels at run time. NATIVE_RUSTFLAGS="" skips it.
 NATIVE_RUSTFLAGS="${NATIVE_RUSTFLAGS--C target-cpu=native}"
 NBIN=""

@@ -104,7 +104,7 @@ def main():
     if native:
         L.append(f"Two ember builds: **portable** (`cargo build --release`, baseline x86-64: SSE2, {width}-wide nodes) "
                  f"and **native** (`RUSTFLAGS=\"{args.native_flags}\"`: this CPU's instruction set, {nwidth}-wide "
-                 "nodes where it has AVX, `kernel/src/bvh/lanes.rs`). Embree chooses its AVX2/AVX-512 kernels at run "
+                 "nodes, in AVX registers where it has AVX, `kernel/src/bvh/lanes.rs`). Embree chooses its AVX2/AVX-512 kernels at run "
                  "time, so the native column is the like-for-like one; both builds give the same hits bit for bit "
                  "(results hash per row in `results/`).\n")
     head = "| scene | triangles | ray set | query | threads | ember Mrays/s | Embree Mrays/s | ember / Embree |"
@@ -148,7 +148,7 @@ def main():
     L.append("\n## BVH build and memory\n")
     L.append("ember: `SceneData::build_bvh` as the host runs it (triangle bounds, binned SAH over 16 bins, leaves of "
              "up to 4 triangles, nodes trimmed), single-threaded, 3 builds. Kernel bytes = what traversal reads: "
-             "128-byte four-wide nodes (256-byte eight-wide in the native column) + 4-byte prim order + 12-byte triangle indices + 12-byte positions (the "
+             f"{32 * width}-byte {width}-wide nodes" + (f" ({32 * nwidth}-byte {nwidth}-wide in the native column)" if native and nwidth != width else "") + " + 4-byte prim order + 12-byte triangle indices + 12-byte positions (the "
              "positions are shared by about 2 triangles each) + the 144-byte groups of four triangles the lane-wise "
              "test reads (leaves aligned to groups, so prim order and groups are padded to whole groups per leaf). Embree: `rtcCommitScene` (BVH8 over triangle4, default quality) "
              "in embreex, build ms over its fresh scenes (1 thread pinned / 2 threads); memory = RSS growth per "

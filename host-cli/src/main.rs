@@ -366,9 +366,10 @@ fn run_render(a: &RenderArgs) -> Result<()> {
     let view = scene.data.view();
     if !a.quiet {
         eprintln!(
-            "ember: {} triangles ({} 4-wide BVH nodes in {:.1} ms, {:.0} bytes/triangle), {} emitters, {width}x{height}, {spp} spp, {integrator:?}, maxDepth {}",
+            "ember: {} triangles ({} {}-wide BVH nodes in {:.1} ms, {:.0} bytes/triangle), {} emitters, {width}x{height}, {spp} spp, {integrator:?}, maxDepth {}",
             scene.data.triangles.len(),
             scene.data.bvh_nodes.len(),
+            ember_kernel::bvh::WIDTH,
             scene.data.bvh_build_seconds * 1e3,
             scene.data.kernel_bytes() as f64 / scene.data.triangles.len() as f64,
             scene.data.emitter_count,

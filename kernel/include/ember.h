@@ -362,9 +362,9 @@ int32_t ember_accel_capacity(uint32_t triangle_count,
                              size_t *out_scratch_bytes);
 
 // Builds the acceleration structure the command-line renderer traces: the BVH of
-// `ember_build_bvh` (binned SAH, built in `scratch`) collapsed into wide nodes (4 lanes, 8 in
-// AVX builds of the library), nearest child first, with the triangles of each leaf stored
-// beside it in SIMD-width groups. Tracing with it (`EmberScene::accel`) gives the same images
+// `ember_build_bvh` (binned SAH, built in `scratch`) collapsed into wide nodes (8 lanes on
+// x86-64, 4 elsewhere), nearest child first, with the triangles of each leaf stored beside it
+// in SIMD-width groups. Tracing with it (`EmberScene::accel`) gives the same images
 // as the binary BVH, bit for bit, about twice as fast. `accel` and `scratch` must be aligned
 // to `EMBER_ACCEL_ALIGN` and hold at least the bytes `ember_accel_capacity` gives
 // (`EMBER_ERROR_SIZE` otherwise); `*out_used_bytes` receives the bytes of `accel` written,

@@ -887,8 +887,8 @@ const _: () = {
 };
 
 /// The start of an acceleration structure. Its counts place the sections ([`AccelLayout`]);
-/// its width is the node width of the library that wrote it (4, or 8 in AVX builds), which a
-/// library of another width refuses.
+/// its width is the node width of the library that wrote it (8 on x86-64, 4 elsewhere), which
+/// a library of another width refuses.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct AccelHeader {
@@ -1260,9 +1260,9 @@ pub unsafe extern "C" fn ember_accel_capacity(
 }
 
 /// Builds the acceleration structure the command-line renderer traces: the BVH of
-/// `ember_build_bvh` (binned SAH, built in `scratch`) collapsed into wide nodes (4 lanes, 8 in
-/// AVX builds of the library), nearest child first, with the triangles of each leaf stored
-/// beside it in SIMD-width groups. Tracing with it (`EmberScene::accel`) gives the same images
+/// `ember_build_bvh` (binned SAH, built in `scratch`) collapsed into wide nodes (8 lanes on
+/// x86-64, 4 elsewhere), nearest child first, with the triangles of each leaf stored beside it
+/// in SIMD-width groups. Tracing with it (`EmberScene::accel`) gives the same images
 /// as the binary BVH, bit for bit, about twice as fast. `accel` and `scratch` must be aligned
 /// to `EMBER_ACCEL_ALIGN` and hold at least the bytes `ember_accel_capacity` gives
 /// (`EMBER_ERROR_SIZE` otherwise); `*out_used_bytes` receives the bytes of `accel` written,

@@ -1,6 +1,6 @@
 //! BVH correctness: structure of the built tree, closest-hit and any-hit traversal against
 //! brute force, watertightness on closed and open meshes, and the build's error cases; the
-//! four-wide collapse's structure, and its traversal (nearest child first) giving the binary
+//! wide collapse's structure, and its traversal (nearest child first) giving the binary
 //! traversal's answers on every query.
 
 use ember_kernel::bvh::closest::{bound_after, precedes};

@@ -14,14 +14,14 @@
 //! - `shadow`: segments between two surface points chosen uniformly by area, both ends pulled
 //!   in by 1e-4 of the box diagonal (any-hit; most are blocked by the sphere).
 //!
-//! Build time includes the triangle bounds, the node and index arrays and the four-wide
-//! collapse, as `ember` builds. Ray sets are traced through the four-wide tree the renderer uses
-//! with its leaves' triangles tested four at a time in SIMD lanes (`wide/...`), through the same
-//! tree testing one triangle at a time through the index buffer (`wide-scalar/...`: what the
-//! lane test buys), through the binary tree as built (`binary/...`), and through the renderer's
-//! tree eight rays at a time (`wide-packet/...`: `SceneView::intersect_packet` and
-//! `occluded_packet` on consecutive rays of the set, which are neighbouring pixels for the
-//! camera set and unrelated rays for the others).
+//! Build time includes the triangle bounds, the node and index arrays and the wide collapse (8-wide
+//! on x86-64, 4 elsewhere), as `ember` builds. Ray sets are traced through the wide tree the
+//! renderer uses with its leaves' triangles tested four at a time in SIMD lanes (`wide/...`),
+//! through the same tree testing one triangle at a time through the index buffer
+//! (`wide-scalar/...`: what the lane test buys), through the binary tree as built (`binary/...`),
+//! and through the renderer's tree eight rays at a time (`wide-packet/...`:
+//! `SceneView::intersect_packet` and `occluded_packet` on consecutive rays of the set, which are
+//! neighbouring pixels for the camera set and unrelated rays for the others).
 //! Before the benchmarks the kernel scene memory per triangle is printed, and after them (under
 //! `cargo bench`) a summary of Mrays/s per scene with the ratio to the 1k scene.
 //!
@@ -129,7 +129,7 @@ fn triangle_bounds(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Aabb> {
         .collect()
 }
 
-/// Bounds, node and index arrays, the build and the four-wide collapse, as the host does it;
+/// Bounds, node and index arrays, the build and the wide collapse, as the host does it;
 /// returns the trimmed binary and wide nodes.
 fn build_bvh(
     positions: &[Vec3],
@@ -246,7 +246,7 @@ impl Scene {
         }
     }
 
-    /// The view of `layout`: the four-wide tree with or without its triangle groups, or the
+    /// The view of `layout`: the wide tree with or without its triangle groups, or the
     /// binary tree as built.
     fn view(&self, layout: Layout) -> SceneView<'_> {
         SceneView {
@@ -375,11 +375,12 @@ fn print_memory(s: &Scene) {
     let [nodes, tris, pos, order, leaf] = s.bytes();
     let n = s.triangles.len() as f64;
     println!(
-        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} 4-wide BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1} + triangle groups {:.1}); + normals {:.1} + material ids 4.0 for shading",
+        "scene {:>4}: {:>9} triangles, {:>8} vertices, {:>9} {}-wide BVH nodes, build {:.3} s; kernel bytes per triangle: {:.1} (nodes {:.1} + indices {:.1} + positions {:.1} + prim order {:.1} + triangle groups {:.1}); + normals {:.1} + material ids 4.0 for shading",
         s.name,
         s.triangles.len(),
         s.positions.len(),
         s.wide.len(),
+        ember_kernel::bvh::WIDTH,
         s.build_seconds,
         (nodes + tris + pos + order + leaf) as f64 / n,
         nodes as f64 / n,
@@ -480,9 +481,9 @@ fn bench_build(c: &mut Criterion) {
 /// How a scene's BVH is traced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Layout {
-    /// The four-wide tree with its triangle groups (the renderer's).
+    /// The wide tree with its triangle groups (the renderer's).
     Wide,
-    /// The four-wide tree, one triangle test at a time.
+    /// The wide tree, one triangle test at a time.
     WideScalar,
     /// The binary tree as built.
     Binary,

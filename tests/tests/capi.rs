@@ -215,7 +215,7 @@ fn c_program_renders_bit_identically_to_the_rust_api() {
     assert_eq!(r.u32s(ne), view.emitter_triangles, "emitter triangles");
     let cdf: Vec<u32> = view.emitter_cdf.iter().map(|c| c.to_bits()).collect();
     assert_eq!(r.f32_bits(ne), cdf, "emitter cdf");
-    // The C API traces the binary tree as built; the Rust view below traces its four-wide
+    // The C API traces the binary tree as built; the Rust view below traces its wide
     // collapse, so the pixel comparison also checks that both give the same image.
     let mut binary = vec![BvhNode::default(); bvh::max_nodes(TRIANGLES)];
     let mut order = vec![0; TRIANGLES];

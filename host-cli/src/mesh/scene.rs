@@ -51,7 +51,7 @@ pub struct SceneData {
     pub emitter_cdf: Vec<f32>,
     /// Number of emitters (objects whose first face is emissive).
     pub emitter_count: usize,
-    /// The wide BVH (4 lanes, 8 in AVX builds) the renderer traces (the binary build is
+    /// The wide BVH (8 lanes on x86-64, 4 elsewhere) the renderer traces (the binary build is
     /// collapsed and dropped).
     pub bvh_nodes: Vec<WideNode>,
     /// The wide tree's primitive order, each leaf starting at a multiple of four

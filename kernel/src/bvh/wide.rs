@@ -1,5 +1,5 @@
 //! Wide BVH: the binary build collapsed so that one node holds the boxes of up to [`WIDTH`]
-//! children (eight where the build targets AVX, four elsewhere: [`super::lanes`]), tested
+//! children (eight on x86-64, four elsewhere: [`super::lanes`]), tested
 //! together by one SIMD slab test.
 //!
 //! Why: on small scenes such as the Cornell box a binary traversal spends most of its time on
@@ -25,8 +25,8 @@ use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::math::gamma;
 use glam::Vec3;
 
-/// Children per node: the lanes of one SIMD register ([`super::lanes`]), 8 where the build
-/// targets AVX, 4 elsewhere.
+/// Children per node: the slab test's lanes ([`super::lanes`]), 8 on x86-64 (one AVX register
+/// or two SSE ones), 4 elsewhere.
 pub const WIDTH: usize = LANES;
 /// Deepest wide level. Each wide level spans at least one binary level of a tree at most
 /// [`MAX_DEPTH`] deep (the collapse opens the largest child first, so a small sibling may stay

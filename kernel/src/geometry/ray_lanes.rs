@@ -33,7 +33,8 @@ pub struct F8(pub [f32; PACKET]);
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct M8(pub u32);
 
-#[cfg(target_arch = "x86_64")]
+// (Not on soft-float x86-64, where `wide`'s fallback maximum would keep a NaN.)
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 mod simd {
     //! `F8` through `wide`'s safe wrappers: `vsubps`/`vmulps`/`vdivps`/`vaddps`, ordered
     //! compares, `vmaxps`/`vminps` (`fast_max`/`fast_min`: the second operand where either is
@@ -122,7 +123,7 @@ mod simd {
     }
 }
 
-#[cfg(not(target_arch = "x86_64"))]
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
 mod simd {
     //! `F8` as arrays, lane by lane.
     use super::{F8, M8, PACKET};

@@ -595,7 +595,7 @@ pub struct Scene {
     pub emitter_triangles: [u32; TRIANGLES],
     pub emitter_cdf: [f32; TRIANGLES],
     pub emitter_count: usize,
-    /// The four-wide BVH the command line traces with (the C API traces the binary one; both
+    /// The wide BVH the command line traces with (the C API traces the binary one; both
     /// must give the golden hashes).
     pub bvh_nodes: [WideNode; WIDE_NODES],
     pub bvh_node_count: usize,
