@@ -287,9 +287,35 @@ impl ZSobolLayout {
     /// when `log2 spp` is odd, flipped by a hash of the same kind.
     #[inline]
     fn sample_part(&self, morton_index: u64, key: u64) -> u64 {
+        self.upper_sample_part(morton_index, key) | self.lowest_sample_part(morton_index, key)
+    }
+
+    /// The Morton index bits that [`Self::upper_sample_part`] depends on: those above the
+    /// lowest sample digit.
+    #[inline]
+    const fn upper_tag(&self, morton_index: u64) -> u64 {
+        morton_index >> ((self.log2_spp & 1) + 2)
+    }
+
+    /// [`Self::sample_part`]'s permuted sample digits above the lowest one: a function of
+    /// [`Self::upper_tag`] and the key.
+    #[inline]
+    fn upper_sample_part(&self, morton_index: u64, key: u64) -> u64 {
         let odd = self.log2_spp & 1;
         let to = self.sample_base4_digits();
-        let mut index = self.permuted_digits(morton_index, key, odd, to);
+        if to <= odd + 1 {
+            return 0;
+        }
+        self.permuted_digits(morton_index, key, odd + 1, to)
+    }
+
+    /// [`Self::sample_part`]'s lowest sample digit, and the odd base-2 digit below it when
+    /// `log2 spp` is odd.
+    #[inline]
+    fn lowest_sample_part(&self, morton_index: u64, key: u64) -> u64 {
+        let odd = self.log2_spp & 1;
+        let to = self.sample_base4_digits();
+        let mut index = self.permuted_digits(morton_index, key, odd, to.min(odd + 1));
         if odd == 1 {
             let flip = permutation_hash(morton_index >> 1, key) >> 63;
             index |= (morton_index & 1) ^ flip;
@@ -326,6 +352,8 @@ impl ZSobolLayout {
             tags: [u32::MAX; MEMO_SLOTS],
             keys: [0; MEMO_SLOTS],
             pixel_parts: [0; MEMO_SLOTS],
+            upper_tags: [u64::MAX; MEMO_SLOTS],
+            upper_parts: [0; MEMO_SLOTS],
         }
     }
 }
@@ -414,6 +442,13 @@ pub struct ZSobolPixelSampler {
     tags: [u32; MEMO_SLOTS],
     keys: [u64; MEMO_SLOTS],
     pixel_parts: [u64; MEMO_SLOTS],
+    /// The slot's dimension's permuted sample digits above the lowest one
+    /// ([`ZSobolLayout::upper_sample_part`]), for the Morton index bits above the lowest digit
+    /// in `upper_tags` (`u64::MAX`: none; a tag is shifted right by at least 2, so never that).
+    /// They change every fourth sample, so consecutive samples recompute one digit's
+    /// permutation instead of all `log4 spp`.
+    upper_tags: [u64; MEMO_SLOTS],
+    upper_parts: [u64; MEMO_SLOTS],
 }
 
 impl ZSobolPixelSampler {
@@ -442,27 +477,34 @@ impl ZSobolPixelSampler {
             let key = self.layout.dimension_key(d);
             return draw(self.layout.sample_index(self.morton_index, key), key);
         }
-        let (key, pixel_part) = self.memo(d);
-        draw(
-            pixel_part | self.layout.sample_part(self.morton_index, key),
-            key,
-        )
+        let (slot, key, pixel_part) = self.memo(d);
+        let layout = &self.layout;
+        let tag = layout.upper_tag(self.morton_index);
+        if self.upper_tags[slot] != tag {
+            self.upper_tags[slot] = tag;
+            self.upper_parts[slot] = layout.upper_sample_part(self.morton_index, key);
+        }
+        let sample_part =
+            self.upper_parts[slot] | layout.lowest_sample_part(self.morton_index, key);
+        draw(pixel_part | sample_part, key)
     }
 
     /// Dimension `d`'s key and the permuted digits of the pixel's part of its index, from the
     /// memo (computed and kept there on a miss).
     #[inline]
-    fn memo(&mut self, d: u32) -> (u64, u64) {
+    fn memo(&mut self, d: u32) -> (usize, u64, u64) {
         let slot = d as usize % MEMO_SLOTS;
         if self.tags[slot] == d {
-            return (self.keys[slot], self.pixel_parts[slot]);
+            return (slot, self.keys[slot], self.pixel_parts[slot]);
         }
         let key = self.layout.dimension_key(d);
         let part = self.layout.pixel_part(self.pixel_index, key);
         self.tags[slot] = d;
         self.keys[slot] = key;
         self.pixel_parts[slot] = part;
-        (key, part)
+        // The upper sample digits held were another dimension's.
+        self.upper_tags[slot] = u64::MAX;
+        (slot, key, part)
     }
 
     /// The draw of `N` (1 or 2) dimensions from `dimension` on for several samples of the pixel
@@ -479,7 +521,7 @@ impl ZSobolPixelSampler {
         live: u32,
         out: &mut [[f32; DRAW_LANES]; N],
     ) {
-        let (key, pixel_part) = self.memo(dimension);
+        let (_, key, pixel_part) = self.memo(dimension);
         let capacity = self.layout.capacity();
         let mut lanes = live & ((1 << DRAW_LANES) - 1);
         for lane in lanes_of(lanes) {
@@ -800,6 +842,21 @@ mod tests {
                                 );
                             }
                             assert_eq!(fresh.dimension(), memo.dimension());
+                        }
+                    }
+                    // The samples again, out of order and repeated (the memo of the digits
+                    // above the lowest must follow the index, not the order of the calls).
+                    for k in 0..2 * spp {
+                        let i = (k * 7 + 3) % spp;
+                        let start = jumps[k as usize % jumps.len()];
+                        let mut fresh = layout.start_pixel_sample(x, y, i, start);
+                        memo.start_sample(i, start);
+                        for _ in 0..12 {
+                            assert_eq!(
+                                fresh.next_2d().to_array().map(f32::to_bits),
+                                memo.next_2d().to_array().map(f32::to_bits),
+                                "spp {spp} ({x}, {y}) i {i}, out of order"
+                            );
                         }
                     }
                 }
