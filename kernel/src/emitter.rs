@@ -23,12 +23,47 @@ pub struct EmitterSample {
 }
 
 /// Index of the first CDF entry above `u·total`, skipping zero-probability entries.
+///
+/// That is the number of entries `<= u·total` (a prefix, the CDF being non-decreasing:
+/// `SceneView::validate`), found by galloping out from the entry a CDF of equal steps would
+/// give, and then a binary search between the last two probes: the answer of a binary search
+/// over the whole CDF, with one or two comparisons instead of `log2 n` dependent ones when the
+/// emitters have nearly equal power, as a light's triangles of a subdivided quad do.
 #[inline]
 fn find_interval(cdf: &[f32], u: f32) -> usize {
-    let total = cdf[cdf.len() - 1];
-    let target = u * total;
-    // partition_point: number of entries <= target.
-    cdf.partition_point(|&c| c <= target).min(cdf.len() - 1)
+    let n = cdf.len();
+    let target = u * cdf[n - 1];
+    let below = |i: usize| cdf[i] <= target;
+    let guess = ((u * n as f32) as usize).min(n - 1);
+    // Entries before `lo` are `<= target`, entries from `hi` on are above it.
+    let (lo, hi) = if below(guess) {
+        let (mut lo, mut step) = (guess + 1, 1);
+        loop {
+            let probe = guess + step;
+            if probe >= n {
+                break (lo, n);
+            }
+            if !below(probe) {
+                break (lo, probe);
+            }
+            lo = probe + 1;
+            step *= 2;
+        }
+    } else {
+        let (mut hi, mut step) = (guess, 1);
+        loop {
+            if step > guess {
+                break (0, hi);
+            }
+            let probe = guess - step;
+            if below(probe) {
+                break (probe + 1, hi);
+            }
+            hi = probe;
+            step *= 2;
+        }
+    };
+    (lo + cdf[lo..hi].partition_point(|&c| c <= target)).min(n - 1)
 }
 
 /// Picks an emissive triangle with `u_select` from the scene's emitter CDF, then a uniform point
@@ -331,5 +366,53 @@ mod tests {
         assert_eq!(find_interval(&cdf, 0.25), 2);
         assert_eq!(find_interval(&cdf, 0.8), 3);
         assert_eq!(find_interval(&cdf, 0.999_999_9), 3);
+    }
+
+    /// The galloping search against a binary search over the whole CDF: equal steps, skewed
+    /// ones, runs of empty entries, a single entry, long tables, and `u` at 0, near 1 and on
+    /// the entries' own fractions.
+    #[test]
+    fn interval_search_is_the_binary_search() {
+        let reference = |cdf: &[f32], u: f32| {
+            cdf.partition_point(|&c| c <= u * cdf[cdf.len() - 1])
+                .min(cdf.len() - 1)
+        };
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut buffer = [0.0f32; 4097];
+        for n in [1usize, 2, 3, 7, 16, 200, 1000, 4097] {
+            for shape in 0..5 {
+                let mut sum = 0.0f32;
+                for (i, c) in buffer[..n].iter_mut().enumerate() {
+                    sum += match shape {
+                        0 => 1.0,
+                        1 => (i + 1) as f32,
+                        2 => 1.0 / ((i + 1) as f32 * (i + 1) as f32 * (i + 1) as f32),
+                        3 if i % 5 < 3 => 0.0,
+                        _ => rnd() * rnd() * 100.0,
+                    };
+                    *c = sum;
+                }
+                let cdf = &buffer[..n];
+                if cdf[n - 1] <= 0.0 {
+                    continue;
+                }
+                let fixed = [0.0, 0.999_999_94, 0.5];
+                let randoms: [f32; 500] = core::array::from_fn(|_| rnd());
+                let own = cdf.iter().map(|&c| c / cdf[n - 1]).filter(|&u| u < 1.0);
+                for u in fixed.into_iter().chain(randoms).chain(own) {
+                    assert_eq!(
+                        find_interval(cdf, u),
+                        reference(cdf, u),
+                        "n {n} shape {shape} u {u}"
+                    );
+                }
+            }
+        }
     }
 }
