@@ -113,13 +113,16 @@ impl core::fmt::Display for SceneError {
     }
 }
 
-/// A closest hit: triangle index, distance and barycentrics of vertices 1 and 2.
+/// A closest hit: triangle index, distance and barycentrics of vertices 1 and 2, and the
+/// triangle's vertices ([`SceneView::triangle_vertices`]), which the leaf test had at hand, so
+/// that [`SceneView::interaction`] need not fetch them through the index buffer again.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     pub t: f32,
     pub triangle: u32,
     pub b1: f32,
     pub b2: f32,
+    pub vertices: [Vec3; 3],
 }
 
 /// A point on a surface with what shading and ray spawning need.
@@ -289,7 +292,7 @@ impl<'a> SceneView<'a> {
         let wray = WatertightRay::new(ray.o, ray.d);
         self.bvh
             .traverse_leaves::<false, _>(ray.o, ray.d, ray.t_max, |first, count, t_max| {
-                self.leaf_hits::<false>(&wray, first, count, t_max, |prim, h| {
+                self.leaf_hits::<false>(&wray, first, count, t_max, |prim, h, vertices| {
                     // The closest-hit order (`bvh::closest`): independent of the visit order.
                     if !closest::precedes(h.t, prim, best.map(|b| (b.t, b.triangle))) {
                         return None;
@@ -299,6 +302,7 @@ impl<'a> SceneView<'a> {
                         triangle: prim,
                         b1: h.b1,
                         b2: h.b2,
+                        vertices,
                     });
                     Some(closest::bound_after(h.t))
                 })
@@ -313,7 +317,7 @@ impl<'a> SceneView<'a> {
         let wray = WatertightRay::new(ray.o, ray.d);
         self.bvh
             .traverse_leaves::<true, _>(ray.o, ray.d, ray.t_max, |first, count, t_max| {
-                self.leaf_hits::<true>(&wray, first, count, t_max, |_, h| Some(h.t))
+                self.leaf_hits::<true>(&wray, first, count, t_max, |_, h, _| Some(h.t))
             })
     }
 
@@ -338,7 +342,8 @@ impl<'a> SceneView<'a> {
             live,
             |first, count, mask, t_max| {
                 for slot in first..first + count {
-                    let (prim, [p0, p1, p2]) = self.slot_triangle(slot);
+                    let (prim, vertices) = self.slot_triangle(slot);
+                    let [p0, p1, p2] = vertices;
                     let hits = lanes.intersect(t_max, p0, p1, p2, mask);
                     for lane in lanes_of(hits.mask) {
                         let t = hits.t.0[lane];
@@ -348,6 +353,7 @@ impl<'a> SceneView<'a> {
                                 triangle: prim,
                                 b1: hits.b1.0[lane],
                                 b2: hits.b2.0[lane],
+                                vertices,
                             });
                             lower_bound(t_max, lane, t);
                         }
@@ -413,7 +419,8 @@ impl<'a> SceneView<'a> {
     }
 
     /// Tests the triangles of the leaf `prim_order[first .. first + count]` in slot order and
-    /// offers each hit closer than the current bound to `accept(prim, hit)`, which returns
+    /// offers each hit closer than the current bound to `accept(prim, hit, vertices)` (the
+    /// triangle's vertices, from the leaf group where there is one), which returns
     /// the bound after it if it takes it; returns the last bound taken (with `ANY_HIT`, the
     /// first). With leaf groups, four triangles are tested at once against the bound at the
     /// start of their group: a hit is offered only if it precedes every hit taken, so the
@@ -426,12 +433,12 @@ impl<'a> SceneView<'a> {
         first: u32,
         count: u32,
         mut t_max: f32,
-        mut accept: impl FnMut(u32, TriangleHit) -> Option<f32>,
+        mut accept: impl FnMut(u32, TriangleHit, [Vec3; 3]) -> Option<f32>,
     ) -> Option<f32> {
         let (order, groups) = (self.bvh.prim_order(), self.bvh.leaf_groups());
         let mut bound = None;
-        let mut offer = |prim: u32, h: TriangleHit, t_max: &mut f32| -> bool {
-            if let Some(t) = accept(prim, h) {
+        let mut offer = |prim: u32, h: TriangleHit, vertices: [Vec3; 3], t_max: &mut f32| -> bool {
+            if let Some(t) = accept(prim, h, vertices) {
                 *t_max = t_max.min(t);
                 bound = Some(*t_max);
                 return ANY_HIT;
@@ -443,7 +450,7 @@ impl<'a> SceneView<'a> {
             for &prim in &order[first..end] {
                 let [p0, p1, p2] = self.triangle_vertices(prim);
                 if let Some(h) = wray.intersect(t_max, p0, p1, p2) {
-                    if offer(prim, h, &mut t_max) {
+                    if offer(prim, h, [p0, p1, p2], &mut t_max) {
                         break;
                     }
                 }
@@ -466,7 +473,7 @@ impl<'a> SceneView<'a> {
                     b1: hits.b1[lane],
                     b2: hits.b2[lane],
                 };
-                if offer(order[base + lane], h, &mut t_max) {
+                if offer(order[base + lane], h, groups[g].triangle(lane), &mut t_max) {
                     return bound;
                 }
             }
@@ -499,8 +506,21 @@ impl<'a> SceneView<'a> {
         b2: f32,
         wo_world: Vec3,
     ) -> SurfaceInteraction {
+        self.surface_at_vertices(triangle, self.triangle_vertices(triangle), b1, b2, wo_world)
+    }
+
+    /// [`Self::surface_at`] given the triangle's vertices (`triangle_vertices(triangle)`).
+    #[inline]
+    #[must_use]
+    fn surface_at_vertices(
+        &self,
+        triangle: u32,
+        [p0, p1, p2]: [Vec3; 3],
+        b1: f32,
+        b2: f32,
+        wo_world: Vec3,
+    ) -> SurfaceInteraction {
         let [i0, i1, i2] = self.triangles[triangle as usize];
-        let [p0, p1, p2] = self.triangle_vertices(triangle);
         let b0 = 1.0 - b1 - b2;
         let (p, p_err) = triangle_point(b1, b2, p0, p1, p2);
         let ng = (p1 - p0).cross(p2 - p0).normalize_or_zero();
@@ -554,7 +574,13 @@ impl<'a> SceneView<'a> {
     #[inline]
     #[must_use]
     pub fn interaction(&self, ray: &Ray, hit: &Hit) -> SurfaceInteraction {
-        self.surface_at(hit.triangle, hit.b1, hit.b2, -ray.d.normalize())
+        self.surface_at_vertices(
+            hit.triangle,
+            hit.vertices,
+            hit.b1,
+            hit.b2,
+            -ray.d.normalize(),
+        )
     }
 
     /// Radiance emitted from `si` toward its `wo` (one-sided, front = shading normal side).

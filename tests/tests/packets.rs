@@ -53,6 +53,16 @@ fn check(view: &SceneView<'_>, rays: &[Ray; PACKET], what: &str, seen: &mut Seen
                 "{what}: lane {lane} of {live:#x}: ray {:?}",
                 rays[lane]
             );
+            // A hit carries its triangle's vertices as the index buffer gives them (from the
+            // leaf groups, which `interaction` then reads instead of the index buffer).
+            for h in [one, packet[lane]].into_iter().flatten() {
+                assert_eq!(
+                    h.vertices.map(|v| v.to_array().map(f32::to_bits)),
+                    view.triangle_vertices(h.triangle)
+                        .map(|v| v.to_array().map(f32::to_bits)),
+                    "{what}: vertices of the hit of lane {lane}"
+                );
+            }
             let occ = view.occluded(&rays[lane]);
             assert_eq!(
                 occluded >> lane & 1 == 1,
