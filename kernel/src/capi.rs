@@ -1501,6 +1501,16 @@ pub unsafe extern "C" fn ember_scene_check(scene: *const EmberScene) -> i32 {
     status(unsafe { record(scene).and_then(|s| scene_view(s, &mut table)) }.map(|_| ()))
 }
 
+/// The sampler an `EMBER_SAMPLER_*` code names, `default` for `EMBER_SAMPLER_DEFAULT`.
+fn sampler_of(code: u32, default: SamplerKind) -> Result<SamplerKind, i32> {
+    Ok(match code {
+        EMBER_SAMPLER_DEFAULT => default,
+        EMBER_SAMPLER_INDEPENDENT => SamplerKind::Independent,
+        EMBER_SAMPLER_ZSOBOL => SamplerKind::ZSobol,
+        _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
+    })
+}
+
 /// The kernel's integrator for [`EmberSettings::integrator`].
 fn integrator_of(code: u32) -> Result<Integrator, i32> {
     Ok(match code {
@@ -1606,12 +1616,7 @@ unsafe fn tile_job<'a>(
     };
     let path = path_settings(settings)?;
     let integrator = integrator_of(settings.integrator)?;
-    let sampler = match settings.sampler {
-        EMBER_SAMPLER_DEFAULT => integrator.default_sampler(),
-        EMBER_SAMPLER_INDEPENDENT => SamplerKind::Independent,
-        EMBER_SAMPLER_ZSOBOL => SamplerKind::ZSobol,
-        _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
-    };
+    let sampler = sampler_of(settings.sampler, integrator.default_sampler())?;
     if matches!(integrator, Integrator::Bdpt(_)) && bdpt::check_depth(path.max_depth).is_err() {
         return Err(EMBER_ERROR_INVALID_ARGUMENT);
     }
@@ -2140,13 +2145,8 @@ unsafe fn ember_bake_vertices_impl(
         EMBER_BAKE_EXPLICIT => BakeEstimator::Explicit,
         _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
     };
-    let sampler = match settings.sampler {
-        EMBER_SAMPLER_DEFAULT | EMBER_SAMPLER_ZSOBOL => SamplerKind::ZSobol,
-        EMBER_SAMPLER_INDEPENDENT => SamplerKind::Independent,
-        _ => return Err(EMBER_ERROR_INVALID_ARGUMENT),
-    };
     let samples = BakeSamples {
-        sampler,
+        sampler: sampler_of(settings.sampler, SamplerKind::ZSobol)?,
         seed: settings.seed,
         per_vertex: settings.spp,
     };
