@@ -27,9 +27,9 @@ pub use eight::{Lanes, LANES};
 pub use quad::{Lanes, LANES};
 
 /// Eight lanes in one `__m256` (AVX builds) or two `__m128` (SSE2), through `wide`'s safe
-/// wrappers (the kernel has no `unsafe` outside its C API). Only its raw `maxps`/`minps`
-/// (`fast_max`/`fast_min`), `cmpps` with ordered predicates, `subps`, `mulps` and `movmskps`
-/// are used, in their VEX forms with AVX.
+/// wrappers (the kernel's `unsafe` is confined to its C API and `crate::prefetch`). Only its
+/// raw `maxps`/`minps` (`fast_max`/`fast_min`), `cmpps` with ordered predicates, `subps`,
+/// `mulps` and `movmskps` are used, in their VEX forms with AVX.
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 mod eight {
     use wide::f32x8;

@@ -23,6 +23,7 @@ use super::lanes::{Lanes, LANES};
 use super::{BvhError, BvhNode, MAX_DEPTH};
 use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::math::gamma;
+use crate::prefetch::prefetch;
 use glam::Vec3;
 
 /// Children per node: the slab test's lanes ([`super::lanes`]), 8 on x86-64 (one AVX register
@@ -440,8 +441,15 @@ impl WideBvh<'_> {
                 }
                 let entry_t = t0[lane];
                 let reference = if node.is_leaf(lane) {
+                    let first = (node.child[lane] & !WIDE_LEAF) as usize;
+                    if let Some(g) = self.leaf_groups.get(first / GROUP_WIDTH) {
+                        prefetch(g);
+                    }
                     WIDE_LEAF | (index * WIDTH + lane) as u32
                 } else {
+                    if let Some(n) = self.nodes.get(node.child[lane] as usize) {
+                        prefetch(n);
+                    }
                     node.child[lane]
                 };
                 let entry = (reference, entry_t);

@@ -1,0 +1,37 @@
+//! Cache prefetch hints: the kernel's one `unsafe` outside the C API, in this one function.
+//!
+//! Why: on scenes larger than the caches, a BVH walk waits on memory for every node and leaf it
+//! takes from its stack. Asking for their cache lines when they are pushed lets those loads
+//! overlap the work on the nearer children (Embree prefetches the same way). Measured with
+//! `bench/embree` (AMD EPYC, one thread, three alternating runs, portable build): shadow rays
+//! 15–20% faster on the 1M-triangle sphere and 5–10% on the 100k one, incoherent rays 5–7%,
+//! camera rays unchanged; the walk is latency-bound there, so no safe code does this (a plain
+//! load of the line stalls on it, and safe Rust has no prefetch).
+//!
+//! Safety: a prefetch is a hint. It reads nothing the program can observe, cannot fault (a
+//! prefetch of an unmapped address is dropped), and its address comes from a reference here.
+//! `_mm_prefetch` is `unsafe` to call only because it is a `#[target_feature(enable = "sse")]`
+//! function, and the implementation below is compiled only where SSE is enabled for the whole
+//! build (every x86-64 target but the soft-float `x86_64-unknown-none`).
+#![deny(clippy::undocumented_unsafe_blocks)]
+
+/// Asks for the cache lines of `*r` (`prefetcht0`: into every level); nothing where there is no
+/// SSE. Changes no result.
+#[inline(always)]
+pub fn prefetch<T>(r: &T) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
+    {
+        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = core::ptr::from_ref(r).cast::<i8>();
+        let mut offset = 0;
+        while offset < core::mem::size_of::<T>() {
+            // SAFETY: `_mm_prefetch` needs SSE, which this build enables (the cfg above); it
+            // is a hint that neither reads observable memory nor faults, and the address is
+            // inside `*r`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(offset)) };
+            offset += 64;
+        }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse")))]
+    let _ = r;
+}
