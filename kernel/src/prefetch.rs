@@ -2,12 +2,12 @@
 //!
 //! Why: on scenes larger than the caches, a BVH walk waits on memory for every node and leaf it
 //! takes from its stack. Asking for their cache lines when they are pushed lets those loads
-//! overlap the work on the nearer children. Measured with
-//! `bench/embree` (AMD EPYC, one thread, medians of three alternating runs, portable build):
-//! shadow rays 8–13% faster on the 1M-triangle sphere and 4–11% on the 100k one, incoherent
-//! rays up to 18% there, the Cornell box's rays 2–7%, camera rays on the spheres 0–2%; the
-//! walk is latency-bound on those rays, and safe Rust has no prefetch (a plain load of the
-//! line stalls on it, which was tried and dropped).
+//! overlap the work on the nearer children. Measured with `bench/embree` (AMD EPYC, one
+//! thread, medians of three alternating runs, portable build): shadow rays 8–13% faster on the
+//! 1M-triangle sphere and 4–11% on the 100k one, incoherent rays up to 18% there, the Cornell
+//! box's rays 2–7%, camera rays on the spheres 0–2%. The walk is latency-bound on those rays,
+//! and safe Rust has no prefetch (a plain load of the line stalls on it, which was tried and
+//! dropped).
 //!
 //! Safety: a prefetch is a hint. It reads nothing the program can observe, cannot fault (a
 //! prefetch of an unmapped address is dropped), and its address comes from a reference here.
