@@ -41,11 +41,15 @@ if [ "${NEED_EMBER:-1}" != 0 ]; then
     (cd "$ROOT" && cargo build --release --quiet -p ember-cli --bin ember)
 fi
 # With EMBER_NATIVE=1, also ember built for this CPU (-C target-cpu=native: the same images,
-# bench/determinism-cost), as EMBER_NATIVE_BIN.
+# bench/determinism-cost), as EMBER_NATIVE_BIN; EMBER_NATIVE_CPU=x86-64-v3 builds it for AVX2
+# instead (the counterpart of MITSUBA_LLVM_TARGET=avx2), in a target folder of its own.
 EMBER_NATIVE_BIN=""
+EMBER_NATIVE_CPU="${EMBER_NATIVE_CPU:-native}"
 if [ "${EMBER_NATIVE:-0}" = 1 ]; then
-    echo "== cargo build --release -p ember-cli (-C target-cpu=native)"
-    (cd "$ROOT" && RUSTFLAGS="-C target-cpu=native" CARGO_TARGET_DIR="$CARGO_TARGET_DIR/native" \
+    dir="$CARGO_TARGET_DIR/native"
+    [ "$EMBER_NATIVE_CPU" = native ] || dir="$CARGO_TARGET_DIR/cpu-$EMBER_NATIVE_CPU"
+    echo "== cargo build --release -p ember-cli (-C target-cpu=$EMBER_NATIVE_CPU)"
+    (cd "$ROOT" && RUSTFLAGS="-C target-cpu=$EMBER_NATIVE_CPU" CARGO_TARGET_DIR="$dir" \
         cargo build --release --quiet -p ember-cli --bin ember)
-    EMBER_NATIVE_BIN="$CARGO_TARGET_DIR/native/release/ember"
+    EMBER_NATIVE_BIN="$dir/release/ember"
 fi

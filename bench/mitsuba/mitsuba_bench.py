@@ -300,6 +300,47 @@ def ember_compare(ember, image, reference):
     return vals
 
 
+# What the llvm variants compile for, by --llvm-target: (LLVM CPU, feature flags, lanes), or
+# None for Dr.Jit's own choice (this CPU: 16 lanes with AVX-512, 8 with AVX2). "avx2" stands in
+# for an AVX2 machine on an AVX-512 one: Haswell's instruction set, AVX-512 off, 8 lanes.
+LLVM_TARGETS = {
+    "native": None,
+    "avx2": ("haswell", "-avx512f,-avx512vl,-avx512dq,-avx512bw,-avx512cd,+avx2,+fma,+avx", 8),
+}
+LLVM_TARGET = None
+
+
+def drjit_core():
+    """Dr.Jit's core library (loaded by `import drjit`), for the target calls its Python
+    bindings do not expose: jit_llvm_set_target and its getters (C++ symbols in drjit-core's
+    jit.h)."""
+    import ctypes
+    import drjit as dr
+
+    lib = ctypes.CDLL(os.path.join(os.path.dirname(dr.__file__), "libdrjit-core.so"))
+    fns = {}
+    for name, sym, res in (("cpu", "_Z19jit_llvm_target_cpuv", ctypes.c_char_p),
+                           ("features", "_Z24jit_llvm_target_featuresv", ctypes.c_char_p),
+                           ("width", "_Z21jit_llvm_vector_widthv", ctypes.c_uint32)):
+        f = getattr(lib, sym)
+        f.restype = res
+        f.argtypes = []
+        fns[name] = f
+    f = lib._Z19jit_llvm_set_targetPKcS0_j
+    f.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
+    f.restype = None
+    fns["set"] = f
+    return fns
+
+
+def llvm_target_line():
+    """What the llvm variants compile for, read back from Dr.Jit."""
+    core = drjit_core()
+    features = core["features"]().decode()
+    avx512 = "AVX-512 on" if "+avx512f" in features.split(",") else "AVX-512 off"
+    return f"{core['cpu']().decode()}, {core['width']()} lanes, {avx512}"
+
+
 def set_variant(variant, threads):
     import mitsuba as mi
 
@@ -307,6 +348,12 @@ def set_variant(variant, threads):
     import drjit as dr
 
     dr.set_thread_count(threads)
+    if variant.startswith("llvm") and LLVM_TARGET is not None:
+        cpu, features, width = LLVM_TARGET
+        core = drjit_core()
+        core["set"](cpu.encode(), features.encode(), width)
+        if core["width"]() != width or core["cpu"]().decode() != cpu:
+            sys.exit(f"error: Dr.Jit did not take the LLVM target {cpu} with {width} lanes")
     return mi, dr
 
 
@@ -359,6 +406,11 @@ def main():
                     help="a second ember binary built with -C target-cpu=native (bit-identical images): its "
                          "ladders and tables follow the first's, files bench_native[_<sampler>].csv/.svg, since "
                          "Mitsuba's llvm variant also compiles for this CPU")
+    ap.add_argument("--ember-native-name", default="target-cpu=native build",
+                    help="what the second binary was built for, as the tables name it")
+    ap.add_argument("--llvm-target", default="native", choices=sorted(LLVM_TARGETS),
+                    help="what Mitsuba's llvm variants compile for: native (Dr.Jit's choice for this CPU) or "
+                         "avx2 (Haswell's instruction set, 8 lanes: an AVX2 machine's code on this one)")
     ap.add_argument("--scene", default=os.path.join(ROOT, "data/cornell-box/cornell_box.toml"))
     ap.add_argument("--size", type=int, default=256, help="square film side (default for --width and --height)")
     ap.add_argument("--width", type=int, help="film width (default: --size)")
@@ -378,6 +430,8 @@ def main():
                          "ladders other than the independent one go to bench_<sampler>.csv/.svg")
     ap.add_argument("--out", default=HERE)
     args = ap.parse_args()
+    global LLVM_TARGET
+    LLVM_TARGET = LLVM_TARGETS[args.llvm_target]
 
     build = os.path.join(args.out, "build")
     os.makedirs(build, exist_ok=True)
@@ -431,6 +485,11 @@ def main():
     variants = args.variants.split(",")
     long_variant = "llvm_ad_rgb" if "llvm_ad_rgb" in variants else variants[0]
     mi, dr = set_variant(long_variant, args.threads)
+    if long_variant.startswith("llvm"):
+        say()
+        say(f"Mitsuba's llvm variants compile for: {llvm_target_line()}"
+            + (" (--llvm-target avx2: an AVX2 machine's code, on this CPU)" if args.llvm_target == "avx2" else
+               " (Dr.Jit's choice for this CPU)") + ".")
     scene = mi.load_file(xml)
     # Emitters are one-sided in both renderers (front = normal side): check that Mitsuba's OBJ
     # loader kept the winding, i.e. its face normals agree with the OBJ's vn.
@@ -500,7 +559,7 @@ def main():
     curves = {name: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == label] for name, label in series}
     builds = [("", args.ember, "baseline x86-64 build")]
     if args.ember_native:
-        builds.append(("_native", args.ember_native, "target-cpu=native build"))
+        builds.append(("_native", args.ember_native, args.ember_native_name))
     for (build_suffix, ember, build_name), sampler in (
             (b, s) for b in builds for s in args.ember_samplers.split(",")):
         suffix = build_suffix + ("" if sampler == "independent" else f"_{sampler}")

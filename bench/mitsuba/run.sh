@@ -7,6 +7,8 @@
 #   bench/mitsuba/run.sh                       # 256x256, 2 threads, 4096-spp references
 #   SCENE=tinyrender-cbox bench/mitsuba/run.sh # TinyRender's cbox.obj, sphere made diffuse
 #   EMBER_NATIVE=1 bench/mitsuba/run.sh        # also ember built with -C target-cpu=native
+#   MITSUBA_LLVM_TARGET=avx2 EMBER_NATIVE=1 EMBER_NATIVE_CPU=x86-64-v3 OUT=bench/mitsuba/avx2 \
+#       bench/mitsuba/run.sh                   # both limited to AVX2 (8 lanes), as on an AVX2 machine
 #   REF_SPP=128 MITSUBA_REF_SPP=128 SPLITS=8 BUDGET=0.5 MAX_SPP=16 OUT=/tmp/smoke \
 #       bench/mitsuba/run.sh                   # a quick smoke run (a few minutes)
 #
@@ -29,6 +31,10 @@ BUDGET="${BUDGET:-10}"
 MAX_SPP="${MAX_SPP:-65536}"
 EMBER_SAMPLERS="${EMBER_SAMPLERS:-independent,zsobol}"   # one ember ladder and table each
 MITSUBA_SAMPLERS="${MITSUBA_SAMPLERS:-independent}"      # e.g. independent,stratified,multijitter,orthogonal,ldsampler
+# What the llvm variants compile for: native (Dr.Jit's choice: 16 lanes with AVX-512) or avx2
+# (Haswell, 8 lanes: an AVX2 machine's code on this CPU; pair it with EMBER_NATIVE=1
+# EMBER_NATIVE_CPU=x86-64-v3 and an OUT of its own).
+MITSUBA_LLVM_TARGET="${MITSUBA_LLVM_TARGET:-native}"
 # Where results.csv, bench.csv, bench.svg and table.md go: this folder for the Cornell box,
 # bench/mitsuba/<scene stem>/ for another scene.
 if [ "$SCENE" = data/cornell-box/cornell_box.toml ]; then OUT="${OUT:-$HERE}"
@@ -60,5 +66,5 @@ exec "$VENV/bin/python" "$HERE/mitsuba_bench.py" --ember "$EMBER" \
     --scene "$SCENE_PATH" --width "$WIDTH" --height "$HEIGHT" --threads "$THREADS" \
     --ref-spp "$REF_SPP" --mitsuba-ref-spp "$MITSUBA_REF_SPP" --splits "$SPLITS" \
     --budget "$BUDGET" --max-spp "$MAX_SPP" --ember-samplers "$EMBER_SAMPLERS" \
-    --mitsuba-samplers "$MITSUBA_SAMPLERS" --out "$OUT" \
-    ${EMBER_NATIVE_BIN:+--ember-native "$EMBER_NATIVE_BIN"}
+    --mitsuba-samplers "$MITSUBA_SAMPLERS" --out "$OUT" --llvm-target "$MITSUBA_LLVM_TARGET" \
+    ${EMBER_NATIVE_BIN:+--ember-native "$EMBER_NATIVE_BIN" --ember-native-name "target-cpu=$EMBER_NATIVE_CPU build"}
