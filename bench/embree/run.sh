@@ -5,6 +5,8 @@
 #
 #   bench/embree/run.sh                              # everything (~10 min on a quiet 2-core machine)
 #   SCENES=cbox,sphere_1k ROUNDS=1 bench/embree/run.sh   # a smoke run (~1 min)
+#   EMBREE_ISA=avx2 NATIVE_RUSTFLAGS="-C target-cpu=x86-64-v3" OUT=bench/embree/avx2 \
+#       bench/embree/run.sh                      # both limited to AVX2, as on an AVX2 machine
 #
 # Work files go to $WORK (default /tmp/embree-data): the Python venv (embreex, numpy), a copy of
 # bench-embree's scripts with the generated scenes and rays (~430 MB, deterministic) and Embree's
@@ -20,6 +22,10 @@ SCENES="${SCENES:-cbox,sphere_1k,sphere_10k,sphere_100k,sphere_1m}"
 ROUNDS="${ROUNDS:-3}"           # bench.py rounds (a fresh process and BVH each)
 PASSES="${PASSES:-3}"           # timed passes per configuration (after one warm-up)
 OUT="${OUT:-$HERE}"             # where table.md and results/ go
+# Embree's instruction set (its device config `isa=`, e.g. avx2): empty for Embree's own choice
+# (AVX-512 where the CPU has it). embreex cannot pass a device config, so rtc_config.c, loaded
+# with LD_PRELOAD, hands rtcNewDevice one; the ISA Embree then reports goes into table.md.
+EMBREE_ISA="${EMBREE_ISA:-}"
 VENV="$WORK/venv"
 DATA="$WORK/bench-embree"
 RES="$OUT/results"
@@ -68,9 +74,29 @@ NATIVE_RUSTFLAGS="${NATIVE_RUSTFLAGS--C target-cpu=native}"
 NBIN=""
 if [ -n "$NATIVE_RUSTFLAGS" ]; then
     echo "== RUSTFLAGS=\"$NATIVE_RUSTFLAGS\" cargo build --release -p ember-tests --bin ember-bvh-embree"
+    # A target folder per set of flags, so that switching them does not rebuild the other.
+    ndir="$CARGO_TARGET_DIR-native"
+    [ "$NATIVE_RUSTFLAGS" = "-C target-cpu=native" ] || ndir="$CARGO_TARGET_DIR-flags-$(echo "$NATIVE_RUSTFLAGS" | tr -c 'A-Za-z0-9.\n' '_')"
     (cd "$ROOT" && RUSTFLAGS="$NATIVE_RUSTFLAGS" cargo build --release --quiet -p ember-tests \
-        --bin ember-bvh-embree --target-dir "$CARGO_TARGET_DIR-native")
-    NBIN="$CARGO_TARGET_DIR-native/release/ember-bvh-embree"
+        --bin ember-bvh-embree --target-dir "$ndir")
+    NBIN="$ndir/release/ember-bvh-embree"
+fi
+
+# Embree's ISA (EMBREE_ISA): the preloaded shim and what Embree reports with it.
+embree_env=()
+isa_note=""
+if [ -n "$EMBREE_ISA" ]; then
+    cc -O2 -shared -fPIC -o "$WORK/rtc_config.so" "$HERE/rtc_config.c" -ldl
+    embree_env=(env LD_PRELOAD="$WORK/rtc_config.so" EMBER_EMBREE_CONFIG="isa=$EMBREE_ISA")
+    targets="$(env LD_PRELOAD="$WORK/rtc_config.so" EMBER_EMBREE_CONFIG="isa=$EMBREE_ISA,verbose=1" \
+        "$VENV/bin/python" -c 'import embreex.rtcore as r; r.EmbreeDevice()' 2>&1 \
+        | sed -n 's/^ *Targets *: *\(.*\) (supported).*/\1/p' | tail -n 1 | sed 's/ *$//')"
+    if [ "${targets##* }" != "${EMBREE_ISA^^}" ]; then
+        echo "Embree did not take isa=$EMBREE_ISA (its targets: '$targets')" >&2
+        exit 1
+    fi
+    isa_note="Embree's device config: \`isa=$EMBREE_ISA\` (EMBREE_ISA; its targets then: $targets), an $EMBREE_ISA machine's kernels on this CPU."
+    echo "== $isa_note"
 fi
 
 # One thread pinned to one CPU, as bench.py pins Embree's 1-thread runs.
@@ -105,7 +131,7 @@ echo "== Embree: bench.py --skip-native"
 # What other processes take meanwhile (ember's binary measures this itself, per row).
 python3 "$HERE/cpu_other.py" "$(ps -o pgid= $$ | tr -d ' ')" "$RES/embree-other-cpu.json" &
 sampler=$!
-(cd "$DATA" && "$VENV/bin/python" bench.py --skip-native --scenes "$SCENES" --rounds "$ROUNDS" --reps "$PASSES")
+(cd "$DATA" && "${embree_env[@]}" "$VENV/bin/python" bench.py --skip-native --scenes "$SCENES" --rounds "$ROUNDS" --reps "$PASSES")
 kill "$sampler"; wait "$sampler" || true
 cp "$DATA/results/bench_results.json" "$DATA/RESULTS.md" "$RES/"
 echo "== uptime: $(uptime)"
@@ -113,4 +139,4 @@ native=()
 [ -n "$NBIN" ] && native=(--ember-native "$RES/ember-native-1t.jsonl" "$RES/ember-native-2t.jsonl"
     --native-flags "$NATIVE_RUSTFLAGS")
 "$VENV/bin/python" "$HERE/table.py" --data "$DATA" --ember "$RES/ember-1t.jsonl" "$RES/ember-2t.jsonl" \
-    "${native[@]}" --out "$OUT/table.md"
+    "${native[@]}" ${isa_note:+--note "$isa_note"} --out "$OUT/table.md"

@@ -103,7 +103,9 @@ def main():
              "ember's standing (bench-embree's native C harness, the fair anchor, is not shipped).\n")
     if native:
         L.append(f"Two ember builds: **portable** (`cargo build --release`, baseline x86-64: SSE2, {width}-wide nodes) "
-                 f"and **native** (`RUSTFLAGS=\"{args.native_flags}\"`: this CPU's instruction set, {nwidth}-wide "
+                 f"and **native** (`RUSTFLAGS=\"{args.native_flags}\"`: "
+                 + ("this CPU's" if args.native_flags == "-C target-cpu=native" else "that target's")
+                 + f" instruction set, {nwidth}-wide "
                  "nodes, in AVX registers where it has AVX, `kernel/src/bvh/lanes.rs`). Embree chooses its AVX2/AVX-512 kernels at run "
                  "time, so the native column is the like-for-like one; both builds give the same hits bit for bit "
                  "(results hash per row in `results/`).\n")
