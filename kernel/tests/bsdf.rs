@@ -18,7 +18,7 @@ use ember_kernel::bsdf::{
     Bsdf, BsdfFlags, BsdfSample, Conductor, Dielectric, Diffuse, Phong, SurfaceBsdf, TransportMode,
 };
 use ember_kernel::glam::{DVec3, Vec2, Vec3};
-use ember_kernel::math::{warp, Frame};
+use ember_kernel::math::{reflect_local, warp, Frame, INV_2PI, INV_PI};
 use ember_kernel::sampler::{IndependentSampler, Sampler, ONE_MINUS_EPSILON};
 use std::f64::consts::PI;
 
@@ -1920,4 +1920,76 @@ fn bsdfs_that_skip_the_lobe_choice_ignore_it() {
             assert!(depends || single, "{name}: uses_lobe_choice but ignores uc");
         }
     }
+}
+
+/// A Phong or mixture lobe with `Ks = 0` (the cbox `rightWall`) skips its `powf`: `eval`,
+/// `eval_pdf`, `pdf` and `sample` give, bit for bit, what the whole formula
+/// `scale·(Kd/π + Ks·(n+2)/(2π)·cosⁿα)` and the mixture pdf give with the power computed, for
+/// constant and per-texel (`with_weights`, whose lobe weight need not be 0) parameters.
+#[test]
+fn zero_specular_lobe_is_skipped_exactly() {
+    let full_f = |p: &Phong, wo: Vec3, wi: Vec3| -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let cos_alpha = reflect_local(wo).dot(wi);
+        let mut f = p.kd * INV_PI;
+        if cos_alpha > 0.0 {
+            let power = libm::powf(cos_alpha, p.exponent);
+            f += p.ks * ((p.exponent + 2.0) * INV_2PI * power);
+        }
+        f * p.scale
+    };
+    let kd = Vec3::new(0.14, 0.45, 0.091);
+    let mut lobes = Vec::new();
+    for ns in [0.0, 1.0, 9.803_922, 30.0, 1e4] {
+        lobes.push(Phong::new(kd, Vec3::ZERO, ns));
+        // A black texel of a textured Ks whose average is not black: sampled, no value.
+        lobes.push(Phong::with_weights(kd, Vec3::ZERO, ns, 0.8, 0.3));
+    }
+    let mut compared = 0;
+    for (k, p) in lobes.iter().enumerate() {
+        for i in 0..2000u64 {
+            let u = IndependentSampler::new(k as u64, i, 0).next_2d();
+            let v = IndependentSampler::new(k as u64, i, 1).next_2d();
+            let sphere = |u: Vec2| {
+                let z = 1.0 - 2.0 * u.x;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let phi = 2.0 * std::f32::consts::PI * u.y;
+                Vec3::new(r * phi.cos(), r * phi.sin(), z)
+            };
+            // Mostly above the surface, where the lobe lives.
+            let (wo, wi) = (sphere(u), sphere(v));
+            let (wo, wi) = if i % 4 == 0 {
+                (wo, wi)
+            } else {
+                (wo.with_z(wo.z.abs()), wi.with_z(wi.z.abs()))
+            };
+            let f = p.eval(wo, wi, MODE);
+            assert_eq!(
+                f.to_array().map(f32::to_bits),
+                full_f(p, wo, wi).to_array().map(f32::to_bits)
+            );
+            let (f2, pdf2) = p.eval_pdf(wo, wi, MODE);
+            assert_eq!(
+                f2.to_array().map(f32::to_bits),
+                f.to_array().map(f32::to_bits)
+            );
+            assert_eq!(pdf2.0.to_bits(), p.pdf(wo, wi, MODE).0.to_bits());
+            if let Some(s) = p.sample(wo, u.x, v, MODE) {
+                let (fs, ps) = p.eval_pdf(wo, s.wi, MODE);
+                assert_eq!(
+                    s.f.to_array().map(f32::to_bits),
+                    fs.to_array().map(f32::to_bits)
+                );
+                assert_eq!(s.pdf.0.to_bits(), ps.0.to_bits());
+                assert_eq!(
+                    s.f.to_array().map(f32::to_bits),
+                    full_f(p, wo, s.wi).to_array().map(f32::to_bits)
+                );
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared > 5000, "only {compared} samples compared");
 }
