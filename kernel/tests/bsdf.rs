@@ -1892,6 +1892,16 @@ fn bsdfs_that_skip_the_lobe_choice_ignore_it() {
         "Dielectric smooth".into(),
         Bsdf::Dielectric(Dielectric::new(1.5, Vec3::ONE, 0.0)),
     ));
+    // Lobe choices fixed by the weights: w_s = 0 (the cbox right wall, Ks = 0) and w_s = 1.
+    let wall = Phong::new(Vec3::new(0.14, 0.45, 0.091), Vec3::ZERO, 9.8);
+    bsdfs.push(("Mixture Ks=0".into(), Bsdf::Mixture(wall)));
+    bsdfs.push((
+        "Phong Kd=0 Ks=.5".into(),
+        Bsdf::Phong(Phong::new(Vec3::ZERO, Vec3::splat(0.5), 20.0)),
+    ));
+    for (_, b) in &bsdfs[bsdfs.len() - 2..] {
+        assert!(!b.uses_lobe_choice());
+    }
     let key = |s: Option<BsdfSample>| {
         s.map(|s| {
             (
@@ -1915,9 +1925,7 @@ fn bsdfs_that_skip_the_lobe_choice_ignore_it() {
             }
         }
         if bsdf.uses_lobe_choice() {
-            // A Phong with Kd = 0 has one lobe in effect (w_s = 1) and may ignore uc.
-            let single = matches!(bsdf, Bsdf::Phong(p) | Bsdf::Mixture(p) if p.specular_weight >= 1.0 || p.specular_weight <= 0.0);
-            assert!(depends || single, "{name}: uses_lobe_choice but ignores uc");
+            assert!(depends, "{name}: uses_lobe_choice but ignores uc");
         }
     }
 }
@@ -1952,14 +1960,11 @@ fn zero_specular_lobe_is_skipped_exactly() {
         for i in 0..2000u64 {
             let u = IndependentSampler::new(k as u64, i, 0).next_2d();
             let v = IndependentSampler::new(k as u64, i, 1).next_2d();
-            let sphere = |u: Vec2| {
-                let z = 1.0 - 2.0 * u.x;
-                let r = (1.0 - z * z).max(0.0).sqrt();
-                let phi = 2.0 * std::f32::consts::PI * u.y;
-                Vec3::new(r * phi.cos(), r * phi.sin(), z)
-            };
             // Mostly above the surface, where the lobe lives.
-            let (wo, wi) = (sphere(u), sphere(v));
+            let (wo, wi) = (
+                warp::sample_uniform_sphere(u),
+                warp::sample_uniform_sphere(v),
+            );
             let (wo, wi) = if i % 4 == 0 {
                 (wo, wi)
             } else {
