@@ -199,14 +199,12 @@ impl Bsdf {
     /// Whether [`Self::sample`] reads its lobe-choice number `uc`: Phong and mixture (glossy
     /// or diffuse lobe) and dielectrics (reflection or transmission) do; diffuse and conductor
     /// BSDFs have one lobe and ignore it, so the path loop does not draw it for them (and
-    /// passes 0). Neither does a Phong lobe whose choice is fixed: with `w_s = 0` (`Ks = 0`, the
-    /// cbox right wall) `uc < w_s` is false and with `w_s = 1` (`Kd = 0`, the veach plates) true
-    /// for every `uc` in [0, 1), 0 included.
+    /// passes 0), nor for a Phong whose choice is fixed ([`Phong::uses_lobe_choice`]).
     #[inline]
     #[must_use]
     pub fn uses_lobe_choice(&self) -> bool {
         match self {
-            Self::Phong(b) | Self::Mixture(b) => b.specular_weight > 0.0 && b.specular_weight < 1.0,
+            Self::Phong(b) | Self::Mixture(b) => b.uses_lobe_choice(),
             Self::Dielectric(_) => true,
             Self::Diffuse(_) | Self::Conductor(_) => false,
         }

@@ -134,6 +134,15 @@ impl Phong {
         SolidAnglePdf(pdf)
     }
 
+    /// Whether [`Self::sample`]'s lobe depends on `uc`: not where the choice `uc < w_s` is
+    /// fixed, with `w_s = 0` (`Ks = 0`, the cbox right wall: never the lobe) or `w_s = 1`
+    /// (`Kd = 0`, the veach plates: always, for every `uc` in [0, 1), 0 included).
+    #[inline]
+    #[must_use]
+    pub fn uses_lobe_choice(&self) -> bool {
+        self.specular_weight > 0.0 && self.specular_weight < 1.0
+    }
+
     #[inline]
     #[must_use]
     pub fn sample(&self, wo: Vec3, uc: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
