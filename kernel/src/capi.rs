@@ -4240,7 +4240,11 @@ mod tests {
             (0, 0x1234_5678, EMBER_ERROR_INVALID_SCENE),
             (1, 2, EMBER_ERROR_INVALID_SCENE),
             (2, if WIDTH == 4 { 8 } else { 4 }, EMBER_ERROR_INVALID_SCENE),
-            (3, 8, EMBER_ERROR_INVALID_SCENE),
+            (
+                3,
+                if GROUP_WIDTH == 4 { 8 } else { 4 },
+                EMBER_ERROR_INVALID_SCENE,
+            ),
             (4, view.nodes.len() as u32 + 1, EMBER_ERROR_SIZE),
             (
                 5,

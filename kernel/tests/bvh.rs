@@ -59,7 +59,7 @@ struct Built {
     nodes: Vec<BvhNode>,
     prim_order: Vec<u32>,
     wide: Vec<WideNode>,
-    /// The wide tree with its leaves aligned to groups of four (`align_leaves`), its order
+    /// The wide tree with its leaves aligned to groups (`align_leaves`), its order
     /// and triangle groups, and the soup as a scene's vertex and index buffers: the layout the
     /// renderer traces, through `SceneView`'s lane-wise leaf test.
     grouped: Vec<WideNode>,

@@ -110,7 +110,7 @@ struct Scene {
     nodes: Vec<BvhNode>,
     wide: Vec<WideNode>,
     prim_order: Vec<u32>,
-    /// The wide tree's order with leaves aligned to groups of four, and its triangle groups.
+    /// The wide tree's order with leaves aligned to groups, and its triangle groups.
     wide_order: Vec<u32>,
     leaf_groups: Vec<TriangleGroup>,
     build_seconds: f64,

@@ -384,8 +384,8 @@ impl SceneData {
     }
 
     /// Builds the BVH over all triangles, collapses it to the wide tree the renderer
-    /// traces, trims that to the nodes used, and lays its leaves out in groups of four
-    /// triangles for the lane-wise triangle test.
+    /// traces, trims that to the nodes used, and lays its leaves out in groups of
+    /// `GROUP_WIDTH` triangles (8 with AVX, 4 otherwise) for the lane-wise triangle test.
     ///
     /// # Errors
     /// When the kernel's build refuses the input.

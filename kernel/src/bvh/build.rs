@@ -4,8 +4,9 @@ use super::BvhNode;
 use crate::geometry::{Aabb, GROUP_WIDTH};
 use glam::Vec3;
 
-/// Leaves hold at most this many primitives unless the centroids cannot be separated.
-pub const MAX_LEAF_PRIMS: usize = 4;
+/// Leaves hold at most this many primitives unless the centroids cannot be separated: one
+/// group of the lane-wise leaf test ([`GROUP_WIDTH`]: 8 in AVX builds, 4 elsewhere).
+pub const MAX_LEAF_PRIMS: usize = GROUP_WIDTH;
 /// Deepest level a node can have (the root is level 0); traversal stacks of this size never
 /// overflow. Below [`SAH_DEPTH`] the build switches to object-median splits, which halve the
 /// primitive count at every level, so up to 2³² primitives fit.
@@ -17,8 +18,7 @@ const BINS: usize = 16;
 const TRAVERSAL_COST: f32 = 1.0;
 
 /// The SAH's cost of testing `n` primitives: one lane-wise test per group of
-/// [`GROUP_WIDTH`] (`SceneView`'s leaf test), so a leaf of three or four costs what a leaf of one
-/// does. Counting primitives instead made leaves of one or two triangles, half-empty groups,
+/// [`GROUP_WIDTH`] (`SceneView`'s leaf test), so a full leaf costs what a leaf of one does. Counting primitives instead made leaves of one or two triangles, half-empty groups,
 /// and 135 bytes per triangle.
 #[inline]
 fn test_cost(n: u32) -> f32 {

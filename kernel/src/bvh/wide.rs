@@ -323,11 +323,10 @@ pub fn gather_leaf_groups(
 pub struct WideBvh<'a> {
     pub nodes: &'a [WideNode],
     pub prim_order: &'a [u32],
-    /// The triangles of `prim_order` in groups of four, structure of arrays (`leaf_groups[g]`
-    /// holds those of slots `4g .. 4g + 4`, [`gather_leaf_groups`]), tested by one lane-wise
-    /// test each; or empty, and the scene tests triangle by triangle through its index buffer.
-    /// With leaves aligned to groups ([`align_leaves`]), a leaf of up to four triangles is one
-    /// group.
+    /// The triangles of `prim_order` in groups of [`GROUP_WIDTH`], structure of arrays
+    /// (`leaf_groups[g]` holds those of slots `w·g .. w·g + w`, [`gather_leaf_groups`]), tested
+    /// by one lane-wise test each; or empty, and the scene tests triangle by triangle through
+    /// its index buffer. With leaves aligned to groups ([`align_leaves`]), a leaf is one group.
     pub leaf_groups: &'a [TriangleGroup],
 }
 

@@ -601,7 +601,7 @@ pub struct Scene {
     pub bvh_node_count: usize,
     /// The binary build's primitive order (the C API's).
     pub bvh_prim_order: [u32; TRIANGLES],
-    /// The wide tree's order with leaves aligned to groups of four, and its triangle groups, as
+    /// The wide tree's order with leaves aligned to groups, and its triangle groups, as
     /// the command line traces them.
     pub bvh_wide_order: [u32; WIDE_ORDER],
     pub bvh_wide_order_len: usize,
