@@ -19,9 +19,9 @@
 //! compressed nodes; 128-byte nodes instead of 256, decoded exactly as `origin + q·step` with a
 //! power-of-two step and rounded outwards, so hits stayed the same). The looser boxes cost
 //! only 1.5% more leaf visits, and the walk took 37% fewer L1 misses (callgrind), but decoding
-//! added 26% instructions to the traversal with SSE2 and the rays ran 0–14% slower with
-//! AVX-512 (`bench/embree`, medians of 8 alternating runs, Intel Xeon, 2026-12-06), the
-//! 1M-triangle sphere included. Embree's default BVH8 keeps float boxes too.
+//! added 26% instructions to the traversal with SSE2, and with AVX-512 seven of eight ray sets
+//! ran 2–14% slower (`bench/embree`, medians of 8 alternating runs, Intel Xeon, 2026-12-06),
+//! the 1M-triangle sphere's camera rays by 14%. Embree's default BVH8 keeps float boxes too.
 //!
 //! Determinism: the slab test uses subtraction, multiplication, comparisons and `min`/`max`
 //! that ignore a NaN slab ([`super::lanes`]), which every backend (AVX, SSE2, NEON, wasm SIMD,
