@@ -422,8 +422,8 @@ impl<'a> SceneView<'a> {
     /// offers each hit closer than the current bound to `accept(prim, hit, vertices)` (the
     /// triangle's vertices, from the leaf group where there is one), which returns
     /// the bound after it if it takes it; returns the last bound taken (with `ANY_HIT`, the
-    /// first). With leaf groups, a group of triangles is tested at once against the bound at the
-    /// start of their group: a hit is offered only if it precedes every hit taken, so the
+    /// first). With leaf groups, a group of triangles is tested at once against the bound at
+    /// the start of their group: a hit is offered only if it precedes every hit taken, so the
     /// hits taken are those of the one-by-one test (`bvh::closest`), and the lane test
     /// computes each hit bit for bit as the scalar test does.
     #[inline(always)]

@@ -18,8 +18,9 @@ const BINS: usize = 16;
 const TRAVERSAL_COST: f32 = 1.0;
 
 /// The SAH's cost of testing `n` primitives: one lane-wise test per group of
-/// [`GROUP_WIDTH`] (`SceneView`'s leaf test), so a full leaf costs what a leaf of one does. Counting primitives instead made leaves of one or two triangles, half-empty groups,
-/// and 135 bytes per triangle.
+/// [`GROUP_WIDTH`] (`SceneView`'s leaf test), so a full leaf costs what a leaf of one does.
+/// Counting primitives instead made leaves of one or two triangles, half-empty groups, and 135
+/// bytes per triangle (with groups of four).
 #[inline]
 fn test_cost(n: u32) -> f32 {
     n.div_ceil(GROUP_WIDTH as u32) as f32
