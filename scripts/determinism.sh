@@ -7,7 +7,8 @@
 #
 #   host debug (kernel at opt-level 3, as the dev profile has it, and at opt-level 0),
 #   host release with 1, 2 and 7 threads taking rows and with 7 threads taking 5x5 tiles (each
-#   thread with its own splat buffer), -C target-cpu=x86-64 and -C target-cpu=x86-64-v3
+#   thread with its own splat buffer), with the ray queries limited to the baseline lanes (no
+#   run-time AVX2), -C target-cpu=x86-64 and -C target-cpu=x86-64-v3
 #   (AVX2 and FMA), aarch64-unknown-linux-gnu under qemu-user, wasm32-unknown-unknown under
 #   Node.js, x86_64-unknown-none (no std, no alloc, soft float; linked into a C program), and
 #   the C API (libember_capi.a + tests/capi/cornell.c rendering from two pthreads, a splat
@@ -89,6 +90,10 @@ for n in 1 2 7; do
 done
 record "host release, 7 threads, 5x5 tiles" \
     "$("$target/release/ember-determinism" --threads 7 --tile 5)"
+# The ray queries run with AVX2 where the CPU has it (kernel/src/simd.rs); this row runs the
+# baseline (SSE2) lanes on such a CPU too.
+record "host release, baseline ray-query lanes only, 2 threads" \
+    "$("$target/release/ember-determinism" --threads 2 --simd baseline)"
 
 for cpu in x86-64 x86-64-v3; do
     say "host release, -C target-cpu=$cpu"

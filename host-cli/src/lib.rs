@@ -11,6 +11,7 @@ pub mod mesh;
 pub mod render;
 pub mod scene_file;
 pub mod shard;
+pub mod simd;
 pub mod splats;
 
 pub use error::{Error, Result};

@@ -575,6 +575,10 @@ fn run_bake(a: &BakeArgs) -> Result<()> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = ember_cli::simd::apply_env() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     let result = match &cli.command {
         Command::Render(a) => run_render(a),
         Command::Bake(a) => run_bake(a),

@@ -39,6 +39,7 @@ pub mod math;
 mod prefetch;
 pub mod sampler;
 pub mod scene;
+pub mod simd;
 pub mod splat;
 pub mod texture;
 

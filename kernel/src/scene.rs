@@ -8,6 +8,7 @@ use crate::geometry::{
 };
 use crate::math::Frame;
 use crate::sampler::lanes_of;
+use crate::simd::Isa;
 use crate::texture::{Textures, NO_TEXTURE};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
@@ -285,14 +286,38 @@ impl<'a> SceneView<'a> {
     }
 
     /// Closest hit along the ray.
+    ///
+    /// Runs with AVX where the CPU has it and the build does not already assume it
+    /// ([`crate::simd`]); the hit is the same either way ([`Self::intersect_in`]).
     #[inline]
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        if let Some(avx) = crate::simd::Avx::detect() {
+            return avx.run(
+                #[inline(always)]
+                |avx| self.intersect_in(avx, ray),
+            );
+        }
+        self.intersect_in(crate::simd::Baseline, ray)
+    }
+
+    /// [`Self::intersect`] with the lanes of the instruction set `isa`: the same hit whichever
+    /// it is.
+    #[inline(always)]
+    #[must_use]
+    pub fn intersect_in<I: Isa>(&self, isa: I, ray: &Ray) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let wray = WatertightRay::new(ray.o, ray.d);
-        self.bvh
-            .traverse_leaves::<false, _>(ray.o, ray.d, ray.t_max, |first, count, t_max| {
-                self.leaf_hits::<false>(&wray, first, count, t_max, |prim, h, vertices| {
+        self.bvh.traverse_leaves_in::<false, I, _>(
+            isa,
+            ray.o,
+            ray.d,
+            ray.t_max,
+            // Inlined, so that with AVX the lane code is compiled for AVX (`simd::Avx::run`).
+            #[inline(always)]
+            |first, count, t_max| {
+                self.leaf_hits::<false, I>(isa, &wray, first, count, t_max, |prim, h, vertices| {
                     // The closest-hit order (`bvh::closest`): independent of the visit order.
                     if !closest::precedes(h.t, prim, best.map(|b| (b.t, b.triangle))) {
                         return None;
@@ -306,19 +331,42 @@ impl<'a> SceneView<'a> {
                     });
                     Some(closest::bound_after(h.t))
                 })
-            });
+            },
+        );
         best
     }
 
-    /// Whether anything blocks the ray before `ray.t_max`.
+    /// Whether anything blocks the ray before `ray.t_max` (with AVX where the CPU has it, as
+    /// [`Self::intersect`]).
     #[inline]
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        if let Some(avx) = crate::simd::Avx::detect() {
+            return avx.run(
+                #[inline(always)]
+                |avx| self.occluded_in(avx, ray),
+            );
+        }
+        self.occluded_in(crate::simd::Baseline, ray)
+    }
+
+    /// [`Self::occluded`] with the lanes of the instruction set `isa`: the same answer
+    /// whichever it is.
+    #[inline(always)]
+    #[must_use]
+    pub fn occluded_in<I: Isa>(&self, isa: I, ray: &Ray) -> bool {
         let wray = WatertightRay::new(ray.o, ray.d);
-        self.bvh
-            .traverse_leaves::<true, _>(ray.o, ray.d, ray.t_max, |first, count, t_max| {
-                self.leaf_hits::<true>(&wray, first, count, t_max, |_, h, _| Some(h.t))
-            })
+        self.bvh.traverse_leaves_in::<true, I, _>(
+            isa,
+            ray.o,
+            ray.d,
+            ray.t_max,
+            #[inline(always)]
+            |first, count, t_max| {
+                self.leaf_hits::<true, I>(isa, &wray, first, count, t_max, |_, h, _| Some(h.t))
+            },
+        )
     }
 
     /// [`Self::intersect`] of each ray `rays[i]` whose bit is set in `live`, walking the tree
@@ -427,8 +475,9 @@ impl<'a> SceneView<'a> {
     /// hits taken are those of the one-by-one test (`bvh::closest`), and the lane test
     /// computes each hit bit for bit as the scalar test does.
     #[inline(always)]
-    fn leaf_hits<const ANY_HIT: bool>(
+    fn leaf_hits<const ANY_HIT: bool, I: Isa>(
         &self,
+        isa: I,
         wray: &WatertightRay,
         first: u32,
         count: u32,
@@ -463,7 +512,7 @@ impl<'a> SceneView<'a> {
             let base = g * GROUP_WIDTH;
             let lanes_end = end.min(base + GROUP_WIDTH);
             let lanes = ((1u32 << (lanes_end - base)) - 1) & !((1u32 << (slot - base)) - 1);
-            let hits = wray.intersect_group(t_max, &groups[g], lanes);
+            let hits = groups[g].intersect_in::<I::Group>(isa, wray, t_max, lanes);
             let mut mask = hits.mask;
             while mask != 0 {
                 let lane = mask.trailing_zeros() as usize;

@@ -13,7 +13,8 @@ use ember_kernel::geometry::{intersect_triangle, Aabb, Ray, TriangleGroup, GROUP
 use ember_kernel::glam::Vec3;
 use ember_kernel::math::warp;
 use ember_kernel::sampler::{IndependentSampler, Sampler};
-use ember_kernel::scene::SceneView;
+use ember_kernel::scene::{Hit, SceneView};
+use ember_kernel::simd::Baseline;
 use ember_kernel::texture::Textures;
 use std::collections::HashMap;
 
@@ -572,6 +573,14 @@ fn bvh_closest(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> Option<
     let mut ray = Ray::new(o, d);
     ray.t_max = t_max;
     let grouped = b.scene().intersect(&ray);
+    each_isa(|isa, hit, _| {
+        let key = |h: Option<Hit>| h.map(|h| (h.triangle, [h.t, h.b1, h.b2].map(f32::to_bits)));
+        assert_eq!(
+            key(hit(&b.scene(), &ray)),
+            key(grouped),
+            "o={o} d={d} t_max={t_max}: the {isa} lanes' closest hit"
+        );
+    });
     assert_eq!(
         grouped.map(|h| (h.triangle, h.t.to_bits())),
         binary.map(|(p, t)| (p, t.to_bits())),
@@ -601,7 +610,42 @@ fn bvh_occluded(b: &Built, tris: &[Tri], o: Vec3, d: Vec3, t_max: f32) -> bool {
         binary,
         "o={o} d={d} t_max={t_max}: any-hit of the grouped wide tree"
     );
+    each_isa(|isa, _, occluded| {
+        assert_eq!(
+            occluded(&b.scene(), &ray),
+            binary,
+            "o={o} d={d} t_max={t_max}: any-hit of the {isa} lanes"
+        );
+    });
     binary
+}
+
+type ClosestQuery = fn(&SceneView, &Ray) -> Option<Hit>;
+type AnyQuery = fn(&SceneView, &Ray) -> bool;
+
+/// Calls `check(name, closest, any)` with the scene's queries in each instruction set this
+/// CPU has (`ember_kernel::simd`): the baseline always, AVX2 where detected, whichever
+/// `SceneView::intersect` picks.
+fn each_isa(mut check: impl FnMut(&str, ClosestQuery, AnyQuery)) {
+    check(
+        "baseline",
+        |s, r| s.intersect_in(Baseline, r),
+        |s, r| s.occluded_in(Baseline, r),
+    );
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    if ember_kernel::simd::Avx::detect().is_some() {
+        check(
+            "AVX2",
+            |s, r| {
+                let avx = ember_kernel::simd::Avx::detect().expect("detected above");
+                avx.run(|avx| s.intersect_in(avx, r))
+            },
+            |s, r| {
+                let avx = ember_kernel::simd::Avx::detect().expect("detected above");
+                avx.run(|avx| s.occluded_in(avx, r))
+            },
+        );
+    }
 }
 
 /// `rays` random rays: origins inside and outside the scene bounds, random directions, a third

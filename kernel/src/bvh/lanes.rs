@@ -21,70 +21,83 @@
 // one hash.
 #![allow(clippy::disallowed_types)]
 
+/// The slab test's lanes: one box bound per lane and axis, [`LANES`] of them.
+pub trait BoxLanes<const W: usize>: Copy {
+    /// The instruction set token these lanes are made with ([`crate::simd::Isa`]).
+    type Isa: Copy;
+    fn load(isa: Self::Isa, a: &[f32; W]) -> Self;
+    fn splat(isa: Self::Isa, x: f32) -> Self;
+    fn sub(self, b: Self) -> Self;
+    fn mul(self, b: Self) -> Self;
+    /// `max(self, b)` where `self` is a number, `b` where it is NaN (`b` is never NaN).
+    fn max_ignoring_nan(self, b: Self) -> Self;
+    /// `min(self, b)` where `self` is a number, `b` where it is NaN, as `max_ignoring_nan`.
+    fn min_ignoring_nan(self, b: Self) -> Self;
+    /// Bit `l` set where `t0 <= t1 && t0 < t_max && t1 > 0` in lane `l`.
+    fn entered(isa: Self::Isa, t0: Self, t1: Self, t_max: f32) -> u32;
+    fn to_array(self) -> [f32; W];
+}
+
+/// Eight lanes on x86-64: `wide`'s `f32x8` in the baseline build (one `__m256` where the build
+/// targets AVX, a pair of `__m128` with SSE2), [`crate::simd::Avx8`] where the queries are
+/// dispatched to AVX at run time. Only raw `maxps`/`minps` (`fast_max`/`fast_min`), `cmpps`
+/// with ordered predicates, `subps`, `mulps` and `movmskps` are used.
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-pub use eight::{Lanes, LANES};
+pub const LANES: usize = 8;
 #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-pub use quad::{Lanes, LANES};
+pub use quad::LANES;
 
-/// Eight lanes in one `__m256` (AVX builds) or two `__m128` (SSE2), through `wide`'s safe
-/// wrappers (the kernel's `unsafe` is confined to its C API and `crate::prefetch`). Only its
-/// raw `maxps`/`minps` (`fast_max`/`fast_min`), `cmpps` with ordered predicates, `subps`,
-/// `mulps` and `movmskps` are used, in their VEX forms with AVX.
+/// The slab lanes of [`crate::simd::Baseline`].
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-mod eight {
-    use wide::f32x8;
+pub type BaselineBoxes = wide::f32x8;
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+pub type BaselineBoxes = quad::Lanes;
 
-    pub const LANES: usize = 8;
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+impl<L: crate::simd::Lanes<8>> BoxLanes<8> for L {
+    type Isa = L::Isa;
 
-    #[derive(Clone, Copy)]
-    pub struct Lanes(f32x8);
+    #[inline(always)]
+    fn load(isa: L::Isa, a: &[f32; LANES]) -> Self {
+        L::new(isa, *a)
+    }
 
-    impl Lanes {
-        #[inline(always)]
-        pub fn load(a: &[f32; LANES]) -> Self {
-            Self(f32x8::new(*a))
-        }
+    #[inline(always)]
+    fn splat(isa: L::Isa, x: f32) -> Self {
+        L::splat(isa, x)
+    }
 
-        #[inline(always)]
-        pub fn splat(x: f32) -> Self {
-            Self(f32x8::splat(x))
-        }
+    #[inline(always)]
+    fn sub(self, b: Self) -> Self {
+        self - b
+    }
 
-        #[inline(always)]
-        pub fn sub(self, b: Self) -> Self {
-            Self(self.0 - b.0)
-        }
+    #[inline(always)]
+    fn mul(self, b: Self) -> Self {
+        self * b
+    }
 
-        #[inline(always)]
-        pub fn mul(self, b: Self) -> Self {
-            Self(self.0 * b.0)
-        }
+    /// `maxps` and `vmaxps` return their second operand when either is NaN.
+    #[inline(always)]
+    fn max_ignoring_nan(self, b: Self) -> Self {
+        self.fast_max(b)
+    }
 
-        /// `max(self, b)` where `self` is a number, `b` where it is NaN (`b` is never NaN):
-        /// `maxps` and `vmaxps` return their second operand when either is NaN.
-        #[inline(always)]
-        pub fn max_ignoring_nan(self, b: Self) -> Self {
-            Self(self.0.fast_max(b.0))
-        }
+    #[inline(always)]
+    fn min_ignoring_nan(self, b: Self) -> Self {
+        self.fast_min(b)
+    }
 
-        /// `min(self, b)` where `self` is a number, `b` where it is NaN, as `max_ignoring_nan`.
-        #[inline(always)]
-        pub fn min_ignoring_nan(self, b: Self) -> Self {
-            Self(self.0.fast_min(b.0))
-        }
+    #[inline(always)]
+    fn entered(isa: L::Isa, t0: Self, t1: Self, t_max: f32) -> u32 {
+        let inside =
+            t0.simd_le(t1) & t0.simd_lt(L::splat(isa, t_max)) & t1.simd_gt(L::splat(isa, 0.0));
+        inside.to_bitmask()
+    }
 
-        /// Bit `l` set where `t0 <= t1 && t0 < t_max && t1 > 0` in lane `l`.
-        #[inline(always)]
-        pub fn entered(t0: Self, t1: Self, t_max: f32) -> u32 {
-            let inside =
-                t0.0.simd_le(t1.0) & t0.0.simd_lt(f32x8::splat(t_max)) & t1.0.simd_gt(f32x8::ZERO);
-            inside.to_bitmask()
-        }
-
-        #[inline(always)]
-        pub fn to_array(self) -> [f32; LANES] {
-            self.0.to_array()
-        }
+    #[inline(always)]
+    fn to_array(self) -> [f32; LANES] {
+        crate::simd::Lanes::to_array(self)
     }
 }
 
@@ -99,27 +112,28 @@ mod quad {
     #[derive(Clone, Copy)]
     pub struct Lanes(Vec4);
 
-    impl Lanes {
+    impl super::BoxLanes<LANES> for Lanes {
+        type Isa = crate::simd::Baseline;
+
         #[inline(always)]
-        pub fn load(a: &[f32; LANES]) -> Self {
+        fn load(_: Self::Isa, a: &[f32; LANES]) -> Self {
             Self(Vec4::from_array(*a))
         }
 
         #[inline(always)]
-        pub fn splat(x: f32) -> Self {
+        fn splat(_: Self::Isa, x: f32) -> Self {
             Self(Vec4::splat(x))
         }
 
         #[inline(always)]
-        pub fn sub(self, b: Self) -> Self {
+        fn sub(self, b: Self) -> Self {
             Self(self.0 - b.0)
         }
 
         #[inline(always)]
-        pub fn mul(self, b: Self) -> Self {
+        fn mul(self, b: Self) -> Self {
             Self(self.0 * b.0)
         }
-
         /// `max(self, b)` where `self` is a number, `b` where it is NaN (`b` is never NaN).
         ///
         /// On x86-64, `a.max(b)` is exactly that: SSE's `maxps` returns its second operand when
@@ -129,7 +143,7 @@ mod quad {
         /// NaN, so there the NaN lanes are replaced first. Both give the same number in every
         /// lane, up to the sign of a zero, which no comparison of the slab test tells apart.
         #[inline(always)]
-        pub fn max_ignoring_nan(self, b: Self) -> Self {
+        fn max_ignoring_nan(self, b: Self) -> Self {
             #[cfg(target_arch = "x86_64")]
             {
                 Self(self.0.max(b.0))
@@ -144,9 +158,8 @@ mod quad {
             }
         }
 
-        /// `min(self, b)` where `self` is a number, `b` where it is NaN, as `max_ignoring_nan`.
         #[inline(always)]
-        pub fn min_ignoring_nan(self, b: Self) -> Self {
+        fn min_ignoring_nan(self, b: Self) -> Self {
             #[cfg(target_arch = "x86_64")]
             {
                 Self(self.0.min(b.0))
@@ -157,15 +170,14 @@ mod quad {
             }
         }
 
-        /// Bit `l` set where `t0 <= t1 && t0 < t_max && t1 > 0` in lane `l`.
         #[inline(always)]
-        pub fn entered(t0: Self, t1: Self, t_max: f32) -> u32 {
+        fn entered(_: Self::Isa, t0: Self, t1: Self, t_max: f32) -> u32 {
             let inside = t0.0.cmple(t1.0) & t0.0.cmplt(Vec4::splat(t_max)) & t1.0.cmpgt(Vec4::ZERO);
             inside.bitmask()
         }
 
         #[inline(always)]
-        pub fn to_array(self) -> [f32; LANES] {
+        fn to_array(self) -> [f32; LANES] {
             self.0.to_array()
         }
     }
@@ -173,16 +185,29 @@ mod quad {
 
 #[cfg(test)]
 mod tests {
-    /// The tests of one lane implementation (module `$lanes`), run for every implementation
-    /// the target compiles.
+    /// The tests of one lane implementation (`$lanes`, `$width` wide, made with the token
+    /// `$isa`, an `Option`: `None` where this CPU lacks its instructions), run for every
+    /// implementation the target compiles.
     macro_rules! lane_tests {
-        ($lanes:ident) => {
-            mod $lanes {
-                use super::super::$lanes::{Lanes, LANES};
+        ($module:ident, $lanes:ty, $width:expr, $isa:expr) => {
+            mod $module {
+                use super::super::BoxLanes;
+
+                type Lanes = $lanes;
+                const LANES: usize = $width;
+
+                fn isa() -> Option<<Lanes as BoxLanes<LANES>>::Isa> {
+                    let isa = $isa;
+                    if isa.is_none() {
+                        std::eprintln!("skipped: this CPU lacks the instructions");
+                    }
+                    isa
+                }
 
                 /// The NaN rule the slab test relies on, on the backend this test is built for.
                 #[test]
                 fn min_and_max_ignore_a_nan_first_operand() {
+                    let Some(isa) = isa() else { return };
                     let values = [
                         f32::NAN,
                         f32::NEG_INFINITY,
@@ -201,7 +226,7 @@ mod tests {
                                 (xs[lane], ys[lane]) =
                                     if lane % 2 == 0 { (a, b) } else { (b, a.max(b)) };
                             }
-                            let (va, vb) = (Lanes::load(&xs), Lanes::load(&ys));
+                            let (va, vb) = (Lanes::load(isa, &xs), Lanes::load(isa, &ys));
                             let max = va.max_ignoring_nan(vb).to_array();
                             let min = va.min_ignoring_nan(vb).to_array();
                             for lane in 0..LANES {
@@ -219,6 +244,7 @@ mod tests {
                 /// The entry mask against the scalar rule, lane by lane, NaN distances included.
                 #[test]
                 fn entered_is_the_scalar_rule_per_lane() {
+                    let Some(isa) = isa() else { return };
                     let values = [f32::NAN, -1.0, -0.0, 0.0, 0.5, 1.0, 3.0, f32::INFINITY];
                     let mut n = 0usize;
                     for &t_max in &[0.5f32, 1.0, f32::INFINITY] {
@@ -231,8 +257,8 @@ mod tests {
                                     t1[lane] = if lane % 2 == 0 { a } else { b };
                                 }
                                 n += 1;
-                                let bits =
-                                    Lanes::entered(Lanes::load(&t0), Lanes::load(&t1), t_max);
+                                let (t0v, t1v) = (Lanes::load(isa, &t0), Lanes::load(isa, &t1));
+                                let bits = Lanes::entered(isa, t0v, t1v, t_max);
                                 for lane in 0..LANES {
                                     let want =
                                         t0[lane] <= t1[lane] && t0[lane] < t_max && t1[lane] > 0.0;
@@ -250,12 +276,13 @@ mod tests {
 
                 #[test]
                 fn arithmetic_is_lane_wise_ieee() {
+                    let Some(isa) = isa() else { return };
                     let a: [f32; LANES] = core::array::from_fn(|l| l as f32 * 1.25 - 3.0);
                     let b: [f32; LANES] = core::array::from_fn(|l| 0.1 + l as f32);
-                    let (va, vb) = (Lanes::load(&a), Lanes::load(&b));
+                    let (va, vb) = (Lanes::load(isa, &a), Lanes::load(isa, &b));
                     let d = va.sub(vb).to_array();
                     let p = va.mul(vb).to_array();
-                    let s = Lanes::splat(2.5).to_array();
+                    let s = <Lanes as BoxLanes<LANES>>::splat(isa, 2.5).to_array();
                     for lane in 0..LANES {
                         assert_eq!(d[lane].to_bits(), (a[lane] - b[lane]).to_bits());
                         assert_eq!(p[lane].to_bits(), (a[lane] * b[lane]).to_bits());
@@ -266,7 +293,14 @@ mod tests {
         };
     }
 
-    lane_tests!(quad);
+    lane_tests!(
+        quad,
+        super::super::quad::Lanes,
+        4,
+        Some(crate::simd::Baseline)
+    );
     #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-    lane_tests!(eight);
+    lane_tests!(eight, wide::f32x8, 8, Some(crate::simd::Baseline));
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    lane_tests!(avx, crate::simd::Avx8, 8, crate::simd::Avx::detect());
 }

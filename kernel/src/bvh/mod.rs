@@ -17,6 +17,7 @@ mod wide;
 pub use build::{
     build, build_triangles, build_with, max_nodes, BvhError, MAX_DEPTH, MAX_LEAF_PRIMS, SAH_DEPTH,
 };
+pub use lanes::{BaselineBoxes, BoxLanes};
 pub use packet::{lower_bound, PacketOverflow, PACKET_STACK};
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 pub use wide::{
@@ -85,6 +86,27 @@ impl<'a> SceneBvh<'a> {
         match self {
             Self::Binary(b) => b.traverse_leaves::<ANY_HIT, F>(o, d, t_max, leaf),
             Self::Wide(w) => w.traverse_leaves::<ANY_HIT, F>(o, d, t_max, leaf),
+        }
+    }
+
+    /// [`Self::traverse_leaves`] with the instruction set `isa` for the wide tree's box tests
+    /// ([`WideBvh::traverse_leaves_in`]).
+    #[inline(always)]
+    pub fn traverse_leaves_in<
+        const ANY_HIT: bool,
+        I: crate::simd::Isa,
+        F: FnMut(u32, u32, f32) -> Option<f32>,
+    >(
+        &self,
+        isa: I,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
+        leaf: F,
+    ) -> bool {
+        match self {
+            Self::Binary(b) => b.traverse_leaves::<ANY_HIT, F>(o, d, t_max, leaf),
+            Self::Wide(w) => w.traverse_leaves_in::<ANY_HIT, I, F>(isa, o, d, t_max, leaf),
         }
     }
 }

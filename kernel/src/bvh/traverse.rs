@@ -40,7 +40,8 @@ impl Bvh<'_> {
     /// [`Self::traverse`] a leaf at a time: `leaf(first, count, t_max)` is called for the
     /// leaves with primitives `prim_order[first .. first + count]` and returns the bound after
     /// its hits closer than `t_max` (or, with `ANY_HIT`, the distance of one), if any.
-    #[inline]
+    /// (Always inlined, so that a caller compiled for AVX compiles `leaf` for AVX too.)
+    #[inline(always)]
     pub fn traverse_leaves<const ANY_HIT: bool, F: FnMut(u32, u32, f32) -> Option<f32>>(
         &self,
         o: Vec3,

@@ -27,11 +27,12 @@
 //! that ignore a NaN slab ([`super::lanes`]), which every backend (AVX, SSE2, NEON, wasm SIMD,
 //! scalar) computes identically to the scalar [`crate::geometry::Aabb::hit`].
 
-use super::lanes::{Lanes, LANES};
+use super::lanes::{BoxLanes, LANES};
 use super::{BvhError, BvhNode, MAX_DEPTH};
 use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::math::gamma;
 use crate::prefetch::prefetch;
+use crate::simd::{Baseline, Isa};
 use glam::Vec3;
 
 /// Children per node: the slab test's lanes ([`super::lanes`]), 8 on x86-64 (one AVX register
@@ -376,14 +377,36 @@ impl WideBvh<'_> {
         o: Vec3,
         d: Vec3,
         t_max: f32,
+        leaf: F,
+    ) -> bool {
+        self.traverse_leaves_in::<ANY_HIT, _, F>(Baseline, o, d, t_max, leaf)
+    }
+
+    /// [`Self::traverse_leaves`] with the box lanes of the instruction set `isa`
+    /// ([`crate::simd`]): the same leaves in the same order.
+    #[inline(always)]
+    pub fn traverse_leaves_in<
+        const ANY_HIT: bool,
+        I: Isa,
+        F: FnMut(u32, u32, f32) -> Option<f32>,
+    >(
+        &self,
+        isa: I,
+        o: Vec3,
+        d: Vec3,
+        t_max: f32,
         mut leaf: F,
     ) -> bool {
-        match self.traverse_with::<ANY_HIT, _, SHORT_TRAVERSAL_STACK>(o, d, t_max, &mut leaf) {
+        let slab = Slab::<I::Boxes>::new(isa, o, d);
+        match self
+            .traverse_with::<ANY_HIT, _, _, SHORT_TRAVERSAL_STACK>(isa, &slab, t_max, &mut leaf)
+        {
             Ok(any) => any,
             // (An abandoned any-hit walk has found nothing: it would have stopped.)
             Err(any) => {
-                let again =
-                    self.traverse_with::<ANY_HIT, _, WIDE_TRAVERSAL_STACK>(o, d, t_max, &mut leaf);
+                let again = self.traverse_with::<ANY_HIT, _, _, WIDE_TRAVERSAL_STACK>(
+                    isa, &slab, t_max, &mut leaf,
+                );
                 any | again.unwrap_or_else(|any| any)
             }
         }
@@ -392,22 +415,24 @@ impl WideBvh<'_> {
     /// [`Self::traverse`] with a stack of `STACK` entries: `Ok(anything hit)`, or
     /// `Err(anything hit so far)` if the walk needed more room and was abandoned (never with
     /// [`WIDE_TRAVERSAL_STACK`]).
-    #[inline]
+    #[inline(always)]
     fn traverse_with<
         const ANY_HIT: bool,
+        I: Isa,
         F: FnMut(u32, u32, f32) -> Option<f32>,
         const STACK: usize,
     >(
         &self,
-        o: Vec3,
-        d: Vec3,
+        isa: I,
+        slab: &Slab<I::Boxes>,
         mut t_max: f32,
-        mut leaf: F,
+        // By reference, not as `&mut F: FnMut`, whose call shim would not be inlined, and
+        // with AVX the leaf test must be (`crate::simd::Avx::run`).
+        leaf: &mut F,
     ) -> Result<bool, bool> {
         if self.nodes.is_empty() {
             return Ok(false);
         }
-        let slab = Slab::new(o, d);
         // Children still to visit, the next one on top: (node index, or WIDE_LEAF | parent
         // index · WIDTH + lane for a leaf; entry distance of the box).
         let mut stack = [(0u32, 0f32); STACK];
@@ -416,7 +441,7 @@ impl WideBvh<'_> {
         let mut index = 0usize;
         loop {
             let node = &self.nodes[index];
-            let (t0, bits) = slab.hit(node, t_max);
+            let (t0, bits) = slab.hit(isa, node, t_max);
             // One interior child entered (the common case deep in the tree): go down to it
             // without the stack.
             if bits != 0 && bits & (bits - 1) == 0 {
@@ -510,24 +535,22 @@ impl WideBvh<'_> {
 }
 
 /// Per-ray constants of the slab test, one lane per child box.
-struct Slab {
-    o: [Lanes; 3],
-    inv_d: [Lanes; 3],
+struct Slab<L> {
+    o: [L; 3],
+    inv_d: [L; 3],
     neg: [bool; 3],
 }
 
-impl Slab {
-    #[inline]
-    fn new(o: Vec3, d: Vec3) -> Self {
+impl<L: BoxLanes<WIDTH>> Slab<L> {
+    #[inline(always)]
+    fn new(isa: L::Isa, o: Vec3, d: Vec3) -> Self {
         let inv_d = Vec3::ONE / d;
         let neg = [inv_d.x < 0.0, inv_d.y < 0.0, inv_d.z < 0.0];
+        // (Not `array::map`, which need not be inlined, and must be with AVX.)
+        let splat = |v: Vec3| [L::splat(isa, v.x), L::splat(isa, v.y), L::splat(isa, v.z)];
         Self {
-            o: [Lanes::splat(o.x), Lanes::splat(o.y), Lanes::splat(o.z)],
-            inv_d: [
-                Lanes::splat(inv_d.x),
-                Lanes::splat(inv_d.y),
-                Lanes::splat(inv_d.z),
-            ],
+            o: splat(o),
+            inv_d: splat(inv_d),
             neg,
         }
     }
@@ -536,25 +559,25 @@ impl Slab {
     /// `[0, t_max)`, each decided as [`crate::geometry::Aabb::hit`] decides for one box
     /// (pbrt's conservative rounding of the exit distance; a NaN slab, 0·∞ for an origin on a
     /// slab plane with a zero direction component, does not constrain the ray).
-    #[inline]
-    fn hit(&self, node: &WideNode, t_max: f32) -> ([f32; WIDTH], u32) {
-        let scale = Lanes::splat(1.0 + 2.0 * gamma(3));
-        let mut t0 = Lanes::splat(f32::NEG_INFINITY);
-        let mut t1 = Lanes::splat(f32::INFINITY);
+    #[inline(always)]
+    fn hit(&self, isa: L::Isa, node: &WideNode, t_max: f32) -> ([f32; WIDTH], u32) {
+        let scale = L::splat(isa, 1.0 + 2.0 * gamma(3));
+        let mut t0 = L::splat(isa, f32::NEG_INFINITY);
+        let mut t1 = L::splat(isa, f32::INFINITY);
         for axis in 0..3 {
             let (near, far) = if self.neg[axis] {
                 (&node.hi[axis], &node.lo[axis])
             } else {
                 (&node.lo[axis], &node.hi[axis])
             };
-            let tn = Lanes::load(near).sub(self.o[axis]).mul(self.inv_d[axis]);
-            let tf = Lanes::load(far).sub(self.o[axis]).mul(self.inv_d[axis]);
+            let tn = L::load(isa, near).sub(self.o[axis]).mul(self.inv_d[axis]);
+            let tf = L::load(isa, far).sub(self.o[axis]).mul(self.inv_d[axis]);
             t0 = tn.max_ignoring_nan(t0);
             t1 = tf.min_ignoring_nan(t1);
         }
         // Scaling the smallest far distance is scaling each one and taking the smallest:
         // rounding is monotonic, so `min(a·s, b·s) = min(a, b)·s` for `s > 0`, NaN ignored
         // alike (`Aabb::hit` scales after its minimum too).
-        (t0.to_array(), Lanes::entered(t0, t1.mul(scale), t_max))
+        (t0.to_array(), L::entered(isa, t0, t1.mul(scale), t_max))
     }
 }

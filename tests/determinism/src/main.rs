@@ -117,7 +117,9 @@ fn write_ppm(path: &str, image: &[[f32; 3]]) {
 
 fn main() {
     let usage = || -> ! {
-        eprintln!("usage: ember-determinism [--threads N] [--tile S] [--ppm PREFIX]  (N, S >= 1)");
+        eprintln!(
+            "usage: ember-determinism [--threads N] [--tile S] [--ppm PREFIX] [--simd auto|baseline]  (N, S >= 1)"
+        );
         std::process::exit(2);
     };
     let mut threads = 1;
@@ -133,6 +135,13 @@ fn main() {
                 tile = Some(s.unwrap_or_else(|| usage()));
             }
             ("--ppm", Some(p)) => ppm = Some(p),
+            // The ray queries' instructions (`ember_kernel::simd`): AVX2 where the CPU has it,
+            // or the build's baseline only.
+            ("--simd", Some(s)) if s == "auto" => {}
+            ("--simd", Some(s)) if s == "baseline" => {
+                #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+                ember_kernel::simd::limit_to_baseline();
+            }
             _ => usage(),
         }
     }

@@ -660,9 +660,10 @@ fn run(args: &Args) -> Res<()> {
         ];
         let per_tri = |b: usize| b as f64 / n_tris as f64;
         println!(
-            "{scene}: {n_tris} triangles, {} vertices, {} nodes; build {:.1} ms (min of 3, median {:.1}); kernel bytes/triangle {:.1} = nodes {:.1} + prim order {:.1} + triangles {:.1} + positions {:.1} + triangle groups {:.1}",
+            "{scene}: {n_tris} triangles, {} vertices, {} nodes, ray queries in {} lanes; build {:.1} ms (min of 3, median {:.1}); kernel bytes/triangle {:.1} = nodes {:.1} + prim order {:.1} + triangles {:.1} + positions {:.1} + triangle groups {:.1}",
             data.positions.len(),
             data.bvh_nodes.len(),
+            ember_cli::simd::in_use(),
             builds.iter().copied().fold(f64::MAX, f64::min) * 1e3,
             median(&builds) * 1e3,
             per_tri(bytes.iter().sum()),
@@ -674,7 +675,8 @@ fn run(args: &Args) -> Res<()> {
         );
         writeln!(
             json,
-            "{{\"kind\": \"build\", \"scene\": \"{scene}\", \"bvh_width\": {}, \"triangles\": {n_tris}, \"vertices\": {}, \"nodes\": {}, \"build_s\": {}, \"bytes_nodes\": {}, \"bytes_prim_order\": {}, \"bytes_triangles\": {}, \"bytes_positions\": {}, \"bytes_leaf_groups\": {}}}",
+            "{{\"kind\": \"build\", \"scene\": \"{scene}\", \"simd\": \"{}\", \"bvh_width\": {}, \"triangles\": {n_tris}, \"vertices\": {}, \"nodes\": {}, \"build_s\": {}, \"bytes_nodes\": {}, \"bytes_prim_order\": {}, \"bytes_triangles\": {}, \"bytes_positions\": {}, \"bytes_leaf_groups\": {}}}",
+            ember_cli::simd::in_use(),
             ember_kernel::bvh::WIDTH,
             data.positions.len(),
             data.bvh_nodes.len(),
@@ -770,7 +772,10 @@ fn run(args: &Args) -> Res<()> {
 }
 
 fn main() {
-    if let Err(e) = parse_args().and_then(|a| run(&a)) {
+    if let Err(e) = ember_cli::simd::apply_env()
+        .and_then(|()| parse_args())
+        .and_then(|a| run(&a))
+    {
         eprintln!("ember-bvh-embree: {e}");
         std::process::exit(1);
     }

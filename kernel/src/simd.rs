@@ -1,0 +1,504 @@
+//! The instruction sets the ray queries run with, chosen at run time: the kernel's lane code
+//! (the wide BVH's slab test and the triangle groups' watertight test) written once over
+//! [`Lanes`] and compiled twice on x86-64, for the build's baseline and for AVX.
+//!
+//! Why: a build for the x86-64 baseline (the shipped binary, `cargo build --release`) knows
+//! only SSE2, where eight lanes are two registers; a build for `x86-64-v3` or `native` runs
+//! the same queries in one 256-bit register but does not start on a CPU without AVX. Embree
+//! compiles its kernels per ISA and picks one at run time; so does this module, for the two
+//! queries every integrator spends most of its time in ([`crate::scene::SceneView::intersect`]
+//! and [`crate::scene::SceneView::occluded`]). The tree and its triangle groups are eight wide
+//! on x86-64 whichever instructions walk them, so a scene built once is walked by either.
+//!
+//! Determinism: every lane operation here is the correctly rounded IEEE operation, or a
+//! comparison, `maxps`/`minps` (which return their second operand when either is NaN, in SSE
+//! and AVX alike), a bit mask or a bitwise operation: [`Avx8`] computes what `wide::f32x8`
+//! computes, lane for lane, and the hits and images do not depend on which one ran (tests
+//! below, `crate::geometry::triangle_group`'s and the determinism script's).
+//!
+//! Safety: an [`Avx`] value exists only where the CPU and the operating system have AVX
+//! ([`Avx::detect`]: CPUID and XCR0, as `std`'s `is_x86_feature_detected!` checks, which a
+//! `no_std` kernel cannot call), and an [`Avx8`] only where an [`Avx`] was given. So the AVX
+//! intrinsics behind `Avx8`'s operations, `unsafe` to call from code not compiled for AVX,
+//! only ever run on a CPU that has them. [`Avx::run`] compiles its closure for AVX so that
+//! those intrinsics inline into it; without that they would be calls.
+#![deny(clippy::undocumented_unsafe_blocks)]
+
+use crate::geometry::GROUP_WIDTH;
+use core::ops::{Add, AddAssign, BitAnd, BitAndAssign, BitOr, Div, Mul, MulAssign, Not, Sub};
+
+/// SIMD lanes of `W` floats for the watertight test: IEEE arithmetic lane by lane, comparisons
+/// giving all-ones or all-zero lanes, and their bit masks. A lane type is made only through
+/// its instruction set's token ([`Lanes::Isa`]).
+pub trait Lanes<const W: usize>:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + AddAssign
+    + MulAssign
+    + BitAnd<Output = Self>
+    + BitOr<Output = Self>
+    + BitAndAssign
+    + Not<Output = Self>
+{
+    /// The instruction set these lanes need, as a token that proves the CPU has it.
+    type Isa: Copy;
+    fn splat(isa: Self::Isa, x: f32) -> Self;
+    fn new(isa: Self::Isa, a: [f32; W]) -> Self;
+    fn to_array(self) -> [f32; W];
+    /// Bit `l` set where lane `l`'s sign bit is (where a comparison held).
+    fn to_bitmask(self) -> u32;
+    fn simd_eq(self, b: Self) -> Self;
+    /// True where either lane is NaN (unordered), as `cmpneqps`.
+    fn simd_ne(self, b: Self) -> Self;
+    fn simd_lt(self, b: Self) -> Self;
+    fn simd_le(self, b: Self) -> Self;
+    fn simd_gt(self, b: Self) -> Self;
+    fn simd_ge(self, b: Self) -> Self;
+    fn abs(self) -> Self;
+    /// `maxps`: `self` where `self > b`, else `b` (so `b` where either is NaN).
+    fn fast_max(self, b: Self) -> Self;
+    /// `minps`: `self` where `self < b`, else `b`.
+    fn fast_min(self, b: Self) -> Self;
+    /// True where the lane is neither infinite nor NaN.
+    fn is_finite(self) -> Self;
+}
+
+/// An instruction set the ray queries can run with, as a value: holding one is the proof that
+/// the CPU has it. Names the lanes of the slab test and of the triangle groups.
+pub trait Isa: Copy {
+    type Boxes: crate::bvh::BoxLanes<{ crate::bvh::WIDTH }, Isa = Self>;
+    type Group: Lanes<GROUP_WIDTH, Isa = Self>;
+}
+
+/// The instructions every build of this target has: SSE2 on x86-64, NEON on aarch64, and so
+/// on (`wide`'s and glam's choice for the target).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Baseline;
+
+impl Isa for Baseline {
+    type Boxes = crate::bvh::BaselineBoxes;
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    type Group = wide::f32x8;
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+    type Group = wide::f32x4;
+}
+
+/// `wide`'s lanes, as this target's build compiles them.
+macro_rules! wide_lanes {
+    ($lanes:ident, $width:literal) => {
+        impl Lanes<$width> for wide::$lanes {
+            type Isa = Baseline;
+            #[inline(always)]
+            fn splat(_: Baseline, x: f32) -> Self {
+                Self::splat(x)
+            }
+            #[inline(always)]
+            fn new(_: Baseline, a: [f32; $width]) -> Self {
+                Self::new(a)
+            }
+            #[inline(always)]
+            fn to_array(self) -> [f32; $width] {
+                Self::to_array(self)
+            }
+            #[inline(always)]
+            fn to_bitmask(self) -> u32 {
+                Self::to_bitmask(self)
+            }
+            #[inline(always)]
+            fn simd_eq(self, b: Self) -> Self {
+                Self::simd_eq(self, b)
+            }
+            #[inline(always)]
+            fn simd_ne(self, b: Self) -> Self {
+                Self::simd_ne(self, b)
+            }
+            #[inline(always)]
+            fn simd_lt(self, b: Self) -> Self {
+                Self::simd_lt(self, b)
+            }
+            #[inline(always)]
+            fn simd_le(self, b: Self) -> Self {
+                Self::simd_le(self, b)
+            }
+            #[inline(always)]
+            fn simd_gt(self, b: Self) -> Self {
+                Self::simd_gt(self, b)
+            }
+            #[inline(always)]
+            fn simd_ge(self, b: Self) -> Self {
+                Self::simd_ge(self, b)
+            }
+            #[inline(always)]
+            fn abs(self) -> Self {
+                Self::abs(self)
+            }
+            #[inline(always)]
+            fn fast_max(self, b: Self) -> Self {
+                Self::fast_max(self, b)
+            }
+            #[inline(always)]
+            fn fast_min(self, b: Self) -> Self {
+                Self::fast_min(self, b)
+            }
+            #[inline(always)]
+            fn is_finite(self) -> Self {
+                Self::is_finite(self)
+            }
+        }
+    };
+}
+
+wide_lanes!(f32x4, 4);
+wide_lanes!(f32x8, 8);
+
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+pub use avx::{limit_to_baseline, Avx, Avx8};
+
+/// AVX: its token, its detection, and eight lanes in one `__m256`.
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[allow(unsafe_code)]
+mod avx {
+    use super::{Isa, Lanes};
+    use core::arch::x86_64::{
+        __m256, _mm256_add_ps, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_div_ps,
+        _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps,
+        _mm256_or_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_storeu_ps, _mm256_sub_ps,
+        _mm256_xor_ps, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
+    };
+    use core::ops::{Add, AddAssign, BitAnd, BitAndAssign, BitOr, Div, Mul, MulAssign, Not, Sub};
+    use core::sync::atomic::{AtomicU8, Ordering};
+
+    /// Proof that this CPU and its operating system support AVX ([`Avx::detect`]).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct Avx(());
+
+    impl Isa for Avx {
+        type Boxes = Avx8;
+        type Group = Avx8;
+    }
+
+    const UNKNOWN: u8 = 0;
+    const BASELINE: u8 = 1;
+    const AVX: u8 = 2;
+
+    /// What [`Avx::detect`] found (or was limited to), once for the process.
+    static FOUND: AtomicU8 = AtomicU8::new(UNKNOWN);
+
+    /// Makes the ray queries use the baseline instructions from now on, whatever the CPU has:
+    /// for benchmarks of the dispatch and for tests of the baseline code on AVX machines.
+    /// Results do not change.
+    pub fn limit_to_baseline() {
+        FOUND.store(BASELINE, Ordering::Relaxed);
+    }
+
+    impl Avx {
+        /// The token, if this CPU has AVX and the operating system saves its registers (and
+        /// [`limit_to_baseline`] was not called). Checked once, then a load and a branch.
+        #[inline]
+        #[must_use]
+        pub fn detect() -> Option<Self> {
+            match FOUND.load(Ordering::Relaxed) {
+                AVX => Some(Self(())),
+                BASELINE => None,
+                _ => {
+                    let found = if cpu_has_avx() { AVX } else { BASELINE };
+                    // A concurrent `limit_to_baseline` wins.
+                    let _ = FOUND.compare_exchange(
+                        UNKNOWN,
+                        found,
+                        Ordering::Relaxed,
+                        Ordering::Relaxed,
+                    );
+                    (FOUND.load(Ordering::Relaxed) == AVX).then_some(Self(()))
+                }
+            }
+        }
+
+        /// `f(self)` in a function compiled for AVX, so that the lane code `f` inlines runs
+        /// in 256-bit registers. `f` should be an `#[inline(always)]` closure.
+        #[inline(always)]
+        pub fn run<R>(self, f: impl FnOnce(Self) -> R) -> R {
+            #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,popcnt")]
+            #[inline]
+            fn with_avx<R>(avx: Avx, f: impl FnOnce(Avx) -> R) -> R {
+                f(avx)
+            }
+            // SAFETY: `self` exists only where `detect` found AVX on this CPU.
+            unsafe { with_avx(self, f) }
+        }
+    }
+
+    /// The x86-64-v3 level the AVX code is compiled for: CPUID.1:ECX has FMA (bit 12),
+    /// POPCNT (23), AVX (28) and OSXSAVE (27, the OS enabled XSAVE), CPUID.7:EBX has BMI1 (3),
+    /// AVX2 (5) and BMI2 (8), CPUID.80000001h:ECX has LZCNT (5); and XCR0 bits 1 and 2 say the
+    /// OS saves the SSE and AVX registers on a context switch (Intel SDM 14.3).
+    fn cpu_has_avx() -> bool {
+        use core::arch::x86_64::{__cpuid, __cpuid_count, _xgetbv};
+        #[target_feature(enable = "xsave")]
+        fn xcr0() -> u64 {
+            // SAFETY: reading XCR0 needs XSAVE enabled by the OS, which the caller checked.
+            unsafe { _xgetbv(0) }
+        }
+        let bits = |word: u32, bits: &[u32]| bits.iter().all(|&b| word >> b & 1 == 1);
+        // SAFETY: every x86-64 CPU has CPUID; leaves past the maxima it reports (leaf 0 and
+        // 80000000h) are not read.
+        #[allow(unused_unsafe)]
+        let (max, max_ext) = unsafe { (__cpuid(0).eax, __cpuid(0x8000_0000).eax) };
+        if max < 7 || max_ext < 0x8000_0001 {
+            return false;
+        }
+        // SAFETY: as above, leaves 1 and 7 and 80000001h exist (checked).
+        #[allow(unused_unsafe)]
+        let (leaf1, leaf7, ext1) =
+            unsafe { (__cpuid(1), __cpuid_count(7, 0), __cpuid(0x8000_0001)) };
+        bits(leaf1.ecx, &[12, 23, 27, 28])
+            && bits(leaf7.ebx, &[3, 5, 8])
+            && bits(ext1.ecx, &[5])
+            // SAFETY: OSXSAVE (checked above) means XGETBV is available and XCR0 readable.
+            && unsafe { xcr0() } & 0b110 == 0b110
+    }
+
+    /// Eight lanes in one AVX register; made only with an [`Avx`] token.
+    #[derive(Clone, Copy, Debug)]
+    pub struct Avx8(__m256);
+
+    /// `Avx8(op(a, b))` for an AVX intrinsic `op`.
+    macro_rules! binary {
+        ($trait:ident, $method:ident, $op:ident) => {
+            impl $trait for Avx8 {
+                type Output = Self;
+                #[inline(always)]
+                fn $method(self, b: Self) -> Self {
+                    // SAFETY: an `Avx8` exists only on a CPU with AVX (module docs).
+                    Self(unsafe { $op(self.0, b.0) })
+                }
+            }
+        };
+    }
+
+    binary!(Add, add, _mm256_add_ps);
+    binary!(Sub, sub, _mm256_sub_ps);
+    binary!(Mul, mul, _mm256_mul_ps);
+    binary!(Div, div, _mm256_div_ps);
+    binary!(BitAnd, bitand, _mm256_and_ps);
+    binary!(BitOr, bitor, _mm256_or_ps);
+
+    impl AddAssign for Avx8 {
+        #[inline(always)]
+        fn add_assign(&mut self, b: Self) {
+            *self = *self + b;
+        }
+    }
+
+    impl MulAssign for Avx8 {
+        #[inline(always)]
+        fn mul_assign(&mut self, b: Self) {
+            *self = *self * b;
+        }
+    }
+
+    impl BitAndAssign for Avx8 {
+        #[inline(always)]
+        fn bitand_assign(&mut self, b: Self) {
+            *self = *self & b;
+        }
+    }
+
+    impl Not for Avx8 {
+        type Output = Self;
+        #[inline(always)]
+        fn not(self) -> Self {
+            // SAFETY: as for every `Avx8` operation.
+            Self(unsafe { _mm256_xor_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(-1))) })
+        }
+    }
+
+    impl Avx8 {
+        #[inline(always)]
+        fn cmp<const PREDICATE: i32>(self, b: Self) -> Self {
+            // SAFETY: as for every `Avx8` operation.
+            Self(unsafe { _mm256_cmp_ps::<PREDICATE>(self.0, b.0) })
+        }
+    }
+
+    impl Lanes<8> for Avx8 {
+        type Isa = Avx;
+
+        #[inline(always)]
+        fn splat(_: Avx, x: f32) -> Self {
+            // SAFETY: the `Avx` token proves this CPU has AVX.
+            Self(unsafe { _mm256_set1_ps(x) })
+        }
+
+        #[inline(always)]
+        fn new(_: Avx, a: [f32; 8]) -> Self {
+            // SAFETY: the `Avx` token proves AVX; the load reads the 32 bytes of `a`.
+            Self(unsafe { _mm256_loadu_ps(a.as_ptr()) })
+        }
+
+        #[inline(always)]
+        fn to_array(self) -> [f32; 8] {
+            let mut a = [0.0; 8];
+            // SAFETY: as for every `Avx8` operation; the store writes the 32 bytes of `a`.
+            unsafe { _mm256_storeu_ps(a.as_mut_ptr(), self.0) };
+            a
+        }
+
+        #[inline(always)]
+        fn to_bitmask(self) -> u32 {
+            // SAFETY: as for every `Avx8` operation.
+            unsafe { _mm256_movemask_ps(self.0) as u32 }
+        }
+
+        #[inline(always)]
+        fn simd_eq(self, b: Self) -> Self {
+            self.cmp::<_CMP_EQ_OQ>(b)
+        }
+
+        #[inline(always)]
+        fn simd_ne(self, b: Self) -> Self {
+            self.cmp::<_CMP_NEQ_UQ>(b)
+        }
+
+        #[inline(always)]
+        fn simd_lt(self, b: Self) -> Self {
+            self.cmp::<_CMP_LT_OQ>(b)
+        }
+
+        #[inline(always)]
+        fn simd_le(self, b: Self) -> Self {
+            self.cmp::<_CMP_LE_OQ>(b)
+        }
+
+        #[inline(always)]
+        fn simd_gt(self, b: Self) -> Self {
+            self.cmp::<_CMP_GT_OQ>(b)
+        }
+
+        #[inline(always)]
+        fn simd_ge(self, b: Self) -> Self {
+            self.cmp::<_CMP_GE_OQ>(b)
+        }
+
+        #[inline(always)]
+        fn abs(self) -> Self {
+            // SAFETY: as for every `Avx8` operation.
+            Self(unsafe { _mm256_and_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX))) })
+        }
+
+        #[inline(always)]
+        fn fast_max(self, b: Self) -> Self {
+            // SAFETY: as for every `Avx8` operation.
+            Self(unsafe { _mm256_max_ps(self.0, b.0) })
+        }
+
+        #[inline(always)]
+        fn fast_min(self, b: Self) -> Self {
+            // SAFETY: as for every `Avx8` operation.
+            Self(unsafe { _mm256_min_ps(self.0, b.0) })
+        }
+
+        #[inline(always)]
+        fn is_finite(self) -> Self {
+            // |x| < ∞ is false for both infinities and NaN (ordered comparison).
+            // SAFETY: as for every `Avx8` operation.
+            let inf = Self(unsafe { _mm256_set1_ps(f32::INFINITY) });
+            self.abs().simd_lt(inf)
+        }
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64", target_feature = "sse2"))]
+mod tests {
+    use super::{Avx, Avx8, Baseline, Lanes};
+    use wide::f32x8;
+
+    /// Numbers that tell rounding, signs and NaN handling apart.
+    const VALUES: [f32; 16] = [
+        f32::NAN,
+        f32::NEG_INFINITY,
+        -3.5,
+        -1.0e-40,
+        -0.0,
+        0.0,
+        1.0e-40,
+        f32::MIN_POSITIVE,
+        0.1,
+        1.0 / 3.0,
+        1.0,
+        2.0,
+        7.0e12,
+        f32::MAX,
+        f32::INFINITY,
+        -f32::MAX,
+    ];
+
+    /// Every operation of [`Avx8`] gives the bits `wide::f32x8` (the baseline lanes) gives,
+    /// on every pair of `VALUES` in every lane position.
+    #[test]
+    fn avx_lanes_compute_what_the_baseline_lanes_compute() {
+        let Some(avx) = Avx::detect() else {
+            std::eprintln!("skipped: this CPU lacks AVX2");
+            return;
+        };
+        let n = VALUES.len();
+        for shift in 0..n {
+            for stride in [1, 3, 5, 7] {
+                let a: [f32; 8] = core::array::from_fn(|l| VALUES[(l + shift) % n]);
+                let b: [f32; 8] = core::array::from_fn(|l| VALUES[(l * stride + shift / 2) % n]);
+                let (x, y) = (Avx8::new(avx, a), Avx8::new(avx, b));
+                let (p, q) = (f32x8::new(a), f32x8::new(b));
+                let bits = |v: [f32; 8]| v.map(f32::to_bits);
+                let same = |what: &str, avx: Avx8, base: f32x8| {
+                    assert_eq!(
+                        bits(Lanes::to_array(avx)),
+                        bits(Lanes::to_array(base)),
+                        "{what} of {a:?} and {b:?}"
+                    );
+                    assert_eq!(
+                        Lanes::to_bitmask(avx),
+                        Lanes::to_bitmask(base),
+                        "{what} mask"
+                    );
+                };
+                same("+", x + y, p + q);
+                same("-", x - y, p - q);
+                same("*", x * y, p * q);
+                same("/", x / y, p / q);
+                same("&", x & y, p & q);
+                same("|", x | y, p | q);
+                same("!", !x, !p);
+                same("==", x.simd_eq(y), Lanes::simd_eq(p, q));
+                same("!=", x.simd_ne(y), Lanes::simd_ne(p, q));
+                same("<", x.simd_lt(y), Lanes::simd_lt(p, q));
+                same("<=", x.simd_le(y), Lanes::simd_le(p, q));
+                same(">", x.simd_gt(y), Lanes::simd_gt(p, q));
+                same(">=", x.simd_ge(y), Lanes::simd_ge(p, q));
+                same("abs", x.abs(), Lanes::abs(p));
+                same("max", x.fast_max(y), Lanes::fast_max(p, q));
+                same("min", x.fast_min(y), Lanes::fast_min(p, q));
+                same("is_finite", x.is_finite(), Lanes::is_finite(p));
+                same(
+                    "splat",
+                    Avx8::splat(avx, a[0]),
+                    <f32x8 as Lanes<8>>::splat(Baseline, a[0]),
+                );
+            }
+        }
+    }
+
+    /// A build that assumes x86-64-v3 runs only where detection finds it.
+    #[test]
+    fn detection_agrees_with_the_build() {
+        if cfg!(all(
+            target_feature = "avx2",
+            target_feature = "fma",
+            target_feature = "bmi2"
+        )) {
+            assert!(Avx::detect().is_some());
+        }
+    }
+}
