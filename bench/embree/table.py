@@ -102,12 +102,15 @@ def main():
              "Embree's own single-ray speed is higher than its column here, and ember/Embree is an upper bound on "
              "ember's standing (bench-embree's native C harness, the fair anchor, is not shipped).\n")
     if native:
-        L.append(f"Two ember builds: **portable** (`cargo build --release`, baseline x86-64: SSE2, {width}-wide nodes) "
+        simd = next(iter(builds.values())).get("simd", "baseline")
+        L.append(f"Two ember builds: **portable** (`cargo build --release`, baseline x86-64, {width}-wide nodes; its ray "
+                 f"queries ran in **{simd}** lanes here: AVX2 chosen at run time where the CPU has it, "
+                 "`kernel/src/simd.rs`, else SSE2) "
                  f"and **native** (`RUSTFLAGS=\"{args.native_flags}\"`: "
                  + ("this CPU's" if args.native_flags == "-C target-cpu=native" else "that target's")
-                 + f" instruction set, {nwidth}-wide "
-                 "nodes, in AVX registers where it has AVX, `kernel/src/bvh/lanes.rs`). Embree chooses its AVX2/AVX-512 kernels at run "
-                 "time, so the native column is the like-for-like one; both builds give the same hits bit for bit "
+                 + f" instruction set throughout, {nwidth}-wide "
+                 "nodes). Embree chooses its AVX2/AVX-512 kernels at run "
+                 "time too; both builds give the same hits bit for bit "
                  "(results hash per row in `results/`).\n")
     head = "| scene | triangles | ray set | query | threads | ember Mrays/s | Embree Mrays/s | ember / Embree |"
     sep = "|---|---:|---|---|---:|---:|---:|---:|"

@@ -6,6 +6,7 @@
 //! - [`sampler`]: the deterministic sampler keyed by (seed, pixel, sample index, dimension).
 //! - [`geometry`]: rays, watertight triangle intersection, robust ray origins.
 //! - [`bvh`]: binned-SAH BVH built into caller slices, fixed-stack traversal.
+//! - [`simd`]: the SIMD lanes of the ray queries, and their run-time choice of AVX2 on x86-64.
 //! - [`camera`]: the TinyRender pinhole camera.
 //! - [`bsdf`]: the closed set of BSDFs (enum dispatch, local shading frame) and the
 //!   [`bsdf::SurfaceBsdf`] wrapper integrators use them through.
@@ -16,9 +17,10 @@
 //! - [`integrator`]: the path tracers (one loop, three strategies) and the GI bake.
 //! - `capi` (feature `capi`): the C API over caller-owned arrays (`kernel/include/ember.h`).
 #![no_std]
-// No `unsafe` anywhere, except in two audited modules, every block with its SAFETY argument:
-// the C API when it is compiled in (raw pointers from C turned into slices), and `prefetch`
-// (cache hints for the BVH walk, measured there).
+// No `unsafe` anywhere, except in three audited modules, every block with its SAFETY argument:
+// the C API when it is compiled in (raw pointers from C turned into slices), `prefetch`
+// (cache hints for the BVH walk, measured there) and `simd`'s `avx` (CPU detection and AVX
+// intrinsics behind a token that only detection makes, measured there).
 #![deny(unsafe_code)]
 
 #[cfg(test)]

@@ -1,4 +1,5 @@
-//! Cache prefetch hints: the kernel's one `unsafe` outside the C API, in this one function.
+//! Cache prefetch hints, in this one function (one of the kernel's three audited `unsafe`
+//! modules, with the C API and `crate::simd`'s AVX lanes).
 //!
 //! Why: on scenes larger than the caches, a BVH walk waits on memory for every node and leaf it
 //! takes from its stack. Asking for their cache lines when they are pushed lets those loads

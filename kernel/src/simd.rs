@@ -1,6 +1,7 @@
 //! The instruction sets the ray queries run with, chosen at run time: the kernel's lane code
 //! (the wide BVH's slab test and the triangle groups' watertight test) written once over
-//! [`Lanes`] and compiled twice on x86-64, for the build's baseline and for AVX.
+//! [`Lanes`] and compiled twice on x86-64, for the build's baseline and for AVX2
+//! (the x86-64-v3 level).
 //!
 //! Why: a build for the x86-64 baseline (the shipped binary, `cargo build --release`) knows
 //! only SSE2, where eight lanes are two registers; a build for `x86-64-v3` or `native` runs
@@ -15,6 +16,13 @@
 //! and AVX alike), a bit mask or a bitwise operation: [`Avx8`] computes what `wide::f32x8`
 //! computes, lane for lane, and the hits and images do not depend on which one ran (tests
 //! below, `crate::geometry::triangle_group`'s and the determinism script's).
+//!
+//! Why `core::arch` in this module rather than a crate: `wide` (the baseline lanes) picks its
+//! instructions when it is compiled, so its `f32x8` inside an AVX function is still two SSE
+//! registers (its `maxps`, `cmpps` and `movmskps` are SSE intrinsics that LLVM does not widen).
+//! `pulp` and `multiversion` dispatch at run time only with their `std` feature, through
+//! `std::is_x86_feature_detected!`, which a `no_std` kernel (and its C API) cannot use. What
+//! is left is about twenty intrinsics and the CPUID test, here, behind a token.
 //!
 //! Safety: an [`Avx`] value exists only where the CPU and the operating system have AVX
 //! ([`Avx::detect`]: CPUID and XCR0, as `std`'s `is_x86_feature_detected!` checks, which a
@@ -171,7 +179,10 @@ mod avx {
     use core::ops::{Add, AddAssign, BitAnd, BitAndAssign, BitOr, Div, Mul, MulAssign, Not, Sub};
     use core::sync::atomic::{AtomicU8, Ordering};
 
-    /// Proof that this CPU and its operating system support AVX ([`Avx::detect`]).
+    /// Proof that this CPU and its operating system support AVX2 and the rest of the x86-64-v3
+    /// level (FMA, BMI1/2, LZCNT, POPCNT), which the AVX code is compiled for ([`Avx::detect`]).
+    /// (The code never fuses a multiply and an add: Rust does not contract without being
+    /// asked, and FMA only lets LLVM use VEX forms and `tzcnt` freely.)
     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
     pub struct Avx(());
 
@@ -217,8 +228,10 @@ mod avx {
             }
         }
 
-        /// `f(self)` in a function compiled for AVX, so that the lane code `f` inlines runs
-        /// in 256-bit registers. `f` should be an `#[inline(always)]` closure.
+        /// `f(self)` in a function compiled for x86-64-v3, so that the lane code `f` inlines
+        /// runs in 256-bit registers. `f` should be an `#[inline(always)]` closure, and what it
+        /// calls inlined too: a lane operation left out of line in baseline code is a call per
+        /// instruction (twenty times slower, measured).
         #[inline(always)]
         pub fn run<R>(self, f: impl FnOnce(Self) -> R) -> R {
             #[target_feature(enable = "avx,avx2,bmi1,bmi2,fma,lzcnt,popcnt")]

@@ -1,14 +1,17 @@
-//! The lanes of the wide BVH's slab test: one SIMD register of child boxes per axis.
+//! The lanes of the wide BVH's slab test: one SIMD register of child boxes per axis
+//! ([`BoxLanes`]).
 //!
-//! Eight lanes on x86-64, in `wide`'s `f32x8`: one 256-bit register where the build targets
-//! AVX (`-C target-cpu=x86-64-v3` or `native` on a machine with AVX2), a pair of 128-bit SSE
-//! registers in the baseline build. Four lanes (glam's `Vec4`: NEON, wasm SIMD or scalar)
+//! Eight lanes on x86-64: `wide`'s `f32x8` in the baseline build (a pair of 128-bit SSE
+//! registers, or one 256-bit register where the whole build targets AVX), and
+//! [`crate::simd::Avx8`] (one 256-bit register) where the ray queries are dispatched to AVX2 at
+//! run time ([`crate::simd`]). Four lanes (glam's `Vec4`: NEON, wasm SIMD or scalar)
 //! everywhere else, soft-float x86-64 (`x86_64-unknown-none`) included, where `wide` would
-//! fall back to a scalar maximum that keeps a NaN. The node width follows ([`super::WIDTH`]). Eight lanes on SSE2 cost two
-//! instructions per axis and bound where four cost one, but the tree has about half the depth
-//! and half the nodes; in the baseline build they rendered the Cornell box 6% and
-//! TinyRender's `cbox.obj` 5–9% faster than four lanes, and the cubebox-sized bake 4–6% (AMD
-//! EPYC, one thread, medians of 5 alternating runs, two runs), with the same images.
+//! fall back to a scalar maximum that keeps a NaN. The node width follows
+//! ([`super::WIDTH`]). Eight lanes on SSE2 cost two instructions per axis and bound where four
+//! cost one, but the tree has about half the depth and half the nodes; in the baseline build
+//! they rendered the Cornell box 6% and TinyRender's `cbox.obj` 5–9% faster than four lanes,
+//! and the cubebox-sized bake 4–6% (AMD EPYC, one thread, medians of 5 alternating runs, two
+//! runs), with the same images.
 //!
 //! Determinism: only subtraction, multiplication, comparisons and the NaN-ignoring `min`/`max`
 //! below, lane by lane; each lane computes what [`crate::geometry::Aabb::hit`] computes for one

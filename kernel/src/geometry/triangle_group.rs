@@ -6,14 +6,16 @@
 //! leaf costs about one test, and its rejections are masks (Embree's Triangle4 layout, with the
 //! watertight test of Woop, Benthin and Wald instead of Möller–Trumbore).
 //!
-//! Width: eight triangles per group where AVX holds eight floats in one register (builds for
-//! `x86-64-v3` or `native`), four elsewhere. With eight, the build makes leaves of up to eight
-//! (its cost model counts group tests), the tree has half the nodes, and a leaf of five to
-//! eight costs one test instead of two: `bench/embree`'s rays ran 2–26% faster (Intel Xeon,
-//! AVX-512, one thread, medians of 6 alternating runs), on both the Cornell box and the
-//! 1M-triangle sphere. In the baseline SSE2 build eight lanes are two registers, every leaf of
-//! up to four pays for eight, and camera rays ran up to 27% slower, so it keeps four. The
-//! hits do not depend on the width: the closest-hit order (`crate::bvh::closest`) does not
+//! Width: eight triangles per group on x86-64 (every build with SSE2), four elsewhere. With
+//! eight, the build makes leaves of up to eight (its cost model counts group tests), the tree
+//! has half the nodes, and a leaf of five to eight costs one test instead of two. Where the CPU
+//! has AVX2 the queries test a group in one 256-bit register ([`crate::simd::Avx8`], chosen at
+//! run time, or `wide::f32x8` in builds for `x86-64-v3` or `native`): `bench/embree`'s rays ran
+//! 2–26% faster than with groups of four (Intel Xeon, AVX-512, one thread, medians of 6
+//! alternating runs), on both the Cornell box and the 1M-triangle sphere. On an x86-64 without
+//! AVX2 the eight lanes are two SSE registers, and a leaf of up to four pays for eight; the
+//! one tree for both instruction sets is worth that (see [`crate::simd`] for the measurement).
+//! The hits do not depend on the width: the closest-hit order (`crate::bvh::closest`) does not
 //! depend on how triangles are grouped.
 //!
 //! Exactness: every lane performs the scalar test's operations in the scalar test's order —
