@@ -552,6 +552,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         "ember bench: {name}, {width}x{height}, {threads} threads, maxDepth {}, budget {} s per rung, up to {} spp",
         path.max_depth, a.budget, a.max_spp
     );
+    eprintln!("ember bench: CPU {}", crate::simd::cpu_summary());
     if !a.quiet {
         eprintln!(
             "{:<9} {:>6} {:>10} {:>12} {:>11} {:>11} {:>11} {:>11}",

@@ -113,7 +113,10 @@ pub fn obj(obj: &[u8], mtl: &[u8]) -> Outcome {
             let n = scene.triangles.len();
             assert!(n > 0, "scene without triangles accepted");
             assert!(scene.bvh_prim_order.len() >= n);
-            assert_eq!(scene.bvh_leaf_groups.len() * 4, scene.bvh_prim_order.len());
+            assert_eq!(
+                scene.bvh_leaf_groups.len() * ember_kernel::geometry::GROUP_WIDTH,
+                scene.bvh_prim_order.len()
+            );
             assert!(!scene.bvh_nodes.is_empty() && scene.bvh_nodes.len() <= n);
             assert!(scene.positions.iter().all(|p| p.is_finite()));
             assert!(scene.emitter_cdf.iter().all(|c| c.is_finite()));

@@ -34,3 +34,51 @@ pub fn in_use() -> &'static str {
     }
     "baseline"
 }
+
+/// This machine's CPU model, its SIMD flags and the ray queries' lanes, for every printed
+/// figure (`Intel(R) Xeon(R) Processor; SIMD sse4_2 avx avx2 fma avx512f; ray queries in avx
+/// lanes`). The model and flags come from `/proc/cpuinfo` (Linux; "unknown CPU" elsewhere).
+#[must_use]
+pub fn cpu_summary() -> String {
+    const FLAGS: [&str; 9] = [
+        "sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512bw", "avx512vl", "asimd",
+    ];
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |name: &str| {
+        info.lines()
+            .find(|l| l.split(':').next().is_some_and(|k| k.trim() == name))
+            .and_then(|l| l.split_once(':'))
+            .map(|(_, v)| v.trim().to_string())
+    };
+    let model = field("model name").unwrap_or_else(|| "unknown CPU".into());
+    let flags = field("flags")
+        .or_else(|| field("Features"))
+        .unwrap_or_default();
+    let have: Vec<&str> = FLAGS
+        .iter()
+        .copied()
+        .filter(|f| flags.split_whitespace().any(|g| g == *f))
+        .collect();
+    format!(
+        "{model}; SIMD {}; ray queries in {} lanes",
+        if have.is_empty() {
+            "none listed".to_string()
+        } else {
+            have.join(" ")
+        },
+        in_use()
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_summary_names_the_lanes_in_use() {
+        let s = super::cpu_summary();
+        assert!(
+            s.ends_with(&format!("ray queries in {} lanes", super::in_use())),
+            "{s}"
+        );
+        assert!(s.contains("; SIMD "), "{s}");
+    }
+}
