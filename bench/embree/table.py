@@ -155,7 +155,7 @@ def main():
              "up to one triangle group, nodes trimmed), single-threaded, 3 builds. Kernel bytes = what traversal reads: "
              f"{32 * width}-byte {width}-wide nodes" + (f" ({32 * nwidth}-byte {nwidth}-wide in the native column)" if native and nwidth != width else "") + " + 4-byte prim order + 12-byte triangle indices + 12-byte positions (the "
              "positions are shared by about 2 triangles each) + the groups of triangles the lane-wise "
-             "test reads (36 bytes per triangle: groups of four, or of eight in a build with AVX such as the native one) (leaves aligned to groups, so prim order and groups are padded to whole groups per leaf). Embree: `rtcCommitScene` (BVH8 over triangle4, default quality) "
+             "test reads (36 bytes per triangle, in groups of eight on x86-64 and four elsewhere) (leaves aligned to groups, so prim order and groups are padded to whole groups per leaf). Embree: `rtcCommitScene` (BVH8 over triangle4, default quality) "
              "in embreex, build ms over its fresh scenes (1 thread pinned / 2 threads); memory = RSS growth per "
              "triangle while creating the geometry (Embree's copy of vertices and indices, 16-byte vertex stride "
              "in embreex) and during the first commit (BVH and whatever the builder keeps); RSS deltas are "

@@ -24,7 +24,7 @@
 // one hash.
 #![allow(clippy::disallowed_types)]
 
-/// The slab test's lanes: one box bound per lane and axis, [`LANES`] of them.
+/// The slab test's lanes: one box bound per lane and axis, [`super::WIDTH`] of them.
 pub trait BoxLanes<const W: usize>: Copy {
     /// The instruction set token these lanes are made with ([`crate::simd::Isa`]).
     type Isa: Copy;
