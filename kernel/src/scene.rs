@@ -287,7 +287,7 @@ impl<'a> SceneView<'a> {
 
     /// Closest hit along the ray.
     ///
-    /// Runs with AVX where the CPU has it and the build does not already assume it
+    /// Runs in AVX2 lanes where the CPU has them, in the build's baseline lanes otherwise
     /// ([`crate::simd`]); the hit is the same either way ([`Self::intersect_in`]).
     #[inline]
     #[must_use]
@@ -336,8 +336,8 @@ impl<'a> SceneView<'a> {
         best
     }
 
-    /// Whether anything blocks the ray before `ray.t_max` (with AVX where the CPU has it, as
-    /// [`Self::intersect`]).
+    /// Whether anything blocks the ray before `ray.t_max` (in AVX2 lanes where the CPU has
+    /// them, as [`Self::intersect`]).
     #[inline]
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
