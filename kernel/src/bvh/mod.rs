@@ -83,10 +83,7 @@ impl<'a> SceneBvh<'a> {
         t_max: f32,
         leaf: F,
     ) -> bool {
-        match self {
-            Self::Binary(b) => b.traverse_leaves::<ANY_HIT, F>(o, d, t_max, leaf),
-            Self::Wide(w) => w.traverse_leaves::<ANY_HIT, F>(o, d, t_max, leaf),
-        }
+        self.traverse_leaves_in::<ANY_HIT, _, F>(crate::simd::Baseline, o, d, t_max, leaf)
     }
 
     /// [`Self::traverse_leaves`] with the instruction set `isa` for the wide tree's box tests
