@@ -152,7 +152,8 @@ def main():
 
     L.append("\n## BVH build and memory\n")
     L.append("ember: `SceneData::build_bvh` as the host runs it (triangle bounds, binned SAH over 16 bins, leaves of "
-             "up to one triangle group, nodes trimmed), single-threaded, 3 builds. Kernel bytes = what traversal reads: "
+             "up to one triangle group, collapsed to wide nodes with small subtrees made leaves of several groups where "
+             "the surface-area cost says so (`bvh::NODE_COST`), nodes trimmed), single-threaded, 3 builds. Kernel bytes = what traversal reads: "
              f"{32 * width}-byte {width}-wide nodes" + (f" ({32 * nwidth}-byte {nwidth}-wide in the native column)" if native and nwidth != width else "") + " + 4-byte prim order + 12-byte triangle indices + 12-byte positions (the "
              "positions are shared by about 2 triangles each) + the groups of triangles the lane-wise "
              "test reads (36 bytes per triangle, in groups of eight on x86-64 and four elsewhere) (leaves aligned to groups, so prim order and groups are padded to whole groups per leaf). Embree: `rtcCommitScene` (BVH8 over triangle4, default quality) "

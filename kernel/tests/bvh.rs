@@ -6,8 +6,8 @@
 use ember_kernel::bvh::closest::{bound_after, precedes};
 use ember_kernel::bvh::{
     align_leaves, aligned_order_len, build, collapse, gather_leaf_groups, max_nodes,
-    max_wide_nodes, Bvh, BvhError, BvhNode, WideBvh, WideNode, MAX_LEAF_PRIMS, TRAVERSAL_STACK,
-    WIDE_LEAF, WIDE_MAX_DEPTH, WIDTH,
+    max_wide_nodes, Bvh, BvhError, BvhNode, WideBvh, WideNode, MAX_LEAF_PRIMS, MAX_MERGED_GROUPS,
+    NODE_COST, SHORT_TRAVERSAL_STACK, TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH, WIDTH,
 };
 use ember_kernel::geometry::{intersect_triangle, Aabb, Ray, TriangleGroup, GROUP_WIDTH};
 use ember_kernel::glam::Vec3;
@@ -151,11 +151,25 @@ impl Built {
 fn validate_wide(b: &Built) -> usize {
     let (wide, n) = (&b.wide, b.prim_order.len());
     assert!(!wide.is_empty() && wide.len() <= max_wide_nodes(b.nodes.len()));
-    let binary_leaves: Vec<(u32, u16, [f32; 3], [f32; 3])> = b
+    // Every binary node as a leaf over its subtree: (first slot, count, box, a binary leaf).
+    // Pre-order puts children after their parent, so a reverse pass sees them first.
+    let mut ranges = vec![(0u32, 0u32); b.nodes.len()];
+    for (i, node) in b.nodes.iter().enumerate().rev() {
+        ranges[i] = if node.is_leaf() {
+            (node.offset, node.offset + u32::from(node.count))
+        } else if i + 1 == b.nodes.len() {
+            // The box-less node of an empty scene.
+            (0, 0)
+        } else {
+            (ranges[i + 1].0, ranges[node.offset as usize].1)
+        };
+    }
+    let subtrees: Vec<(u32, u16, [f32; 3], [f32; 3], bool)> = b
         .nodes
         .iter()
-        .filter(|n| n.is_leaf())
-        .map(|n| (n.offset, n.count, n.min, n.max))
+        .zip(&ranges)
+        .filter(|(n, _)| !(n.is_leaf() && n.count == 0))
+        .map(|(n, &(first, end))| (first, (end - first) as u16, n.min, n.max, n.is_leaf()))
         .collect();
     let mut wide_leaves = Vec::new();
     let mut covered = vec![false; n];
@@ -210,13 +224,20 @@ fn validate_wide(b: &Built) -> usize {
         covered.iter().all(|&c| c) || n == 0,
         "prims in no wide leaf"
     );
-    // The same leaves as the binary tree, with the same boxes.
-    let mut a = binary_leaves;
-    let mut w = wide_leaves;
-    let key = |l: &(u32, u16, [f32; 3], [f32; 3])| (l.0, l.1);
-    a.sort_by_key(key);
-    w.sort_by_key(key);
-    assert_eq!(a, w, "wide leaves differ from binary leaves");
+    // Each wide leaf is a binary leaf or a binary subtree of at most `MAX_MERGED_GROUPS`
+    // groups, with its box (together with the coverage above: a partition of the slots).
+    for &(first, count, lo, hi) in &wide_leaves {
+        let source = subtrees
+            .iter()
+            .find(|s| (s.0, s.1, s.2, s.3) == (first, count, lo, hi));
+        let Some(&(.., is_leaf)) = source else {
+            panic!("wide leaf {first}+{count} is no binary subtree with the same box");
+        };
+        assert!(
+            is_leaf || usize::from(count).div_ceil(GROUP_WIDTH) <= MAX_MERGED_GROUPS,
+            "wide leaf {first}+{count}: a merged subtree over {MAX_MERGED_GROUPS} groups"
+        );
+    }
     let max = depth.into_iter().max().unwrap_or(1);
     assert!(max <= WIDE_MAX_DEPTH, "wide depth {max} > {WIDE_MAX_DEPTH}");
     max
@@ -1091,6 +1112,20 @@ fn walks_that_outgrow_the_short_stack_are_made_again() {
     nodes.push(node(bounds_of(n - 1..n), n - 1, 1));
     let b = Built::with_nodes(nodes, (0..n as u32).collect(), &tris);
     validate_wide(&b);
+    // A ray along the chain enters every box; each node defers all but one of its children,
+    // more in all than the short stack holds (the collapse makes the nearest 24 or so
+    // triangles one leaf, `bvh::NODE_COST`, and the chain above stays deep enough).
+    let deferred: usize = b
+        .wide
+        .iter()
+        .map(|n| {
+            (0..WIDTH)
+                .filter(|&l| !(n.is_leaf(l) && n.count[l] == 0))
+                .count()
+                - 1
+        })
+        .sum();
+    assert!(deferred > SHORT_TRAVERSAL_STACK, "{deferred} deferred");
     for (o, d) in [
         (Vec3::new(0.0, 0.0, 0.0), Vec3::X),
         (
@@ -1113,6 +1148,82 @@ fn walks_that_outgrow_the_short_stack_are_made_again() {
             assert_eq!(bvh_occluded(&b, &tris, o, d, t_max), expected.is_some());
         }
     }
+}
+
+/// The collapse's choice between a small subtree as a node and as one leaf, on a tree made by
+/// hand: three far-apart clusters of one full group each, the first a leaf beside the
+/// subtree of the other two. As one leaf, the whole tree would cost three group tests per ray
+/// through its box, against `NODE_COST` (two) for the node plus next to nothing for the tiny
+/// clusters: it stays a node. The subtree of the last two clusters costs two tests as a leaf
+/// and `NODE_COST` plus next to nothing as a node: it becomes one leaf of two groups. A leaf
+/// beyond `MAX_MERGED_GROUPS` groups is never made, whatever the boxes.
+#[test]
+fn small_subtrees_become_leaves_where_the_surface_area_cost_says() {
+    assert_eq!(
+        NODE_COST, 2.0,
+        "the cases below are set for a node cost of two groups"
+    );
+    let cluster = |x: f32| -> Vec<Tri> {
+        (0..GROUP_WIDTH)
+            .map(|k| {
+                let z = k as f32 * 1e-3;
+                [
+                    Vec3::new(x, 0.0, z),
+                    Vec3::new(x + 1e-3, 0.0, z),
+                    Vec3::new(x, 1e-3, z),
+                ]
+            })
+            .collect()
+    };
+    let tris: Vec<Tri> = [0.0, 10.0, 20.0].into_iter().flat_map(cluster).collect();
+    let bounds_of = |ks: std::ops::Range<usize>| {
+        ks.map(|k| tri_bounds(&tris[k]))
+            .fold(Aabb::EMPTY, Aabb::union)
+    };
+    let node = |b: Aabb, offset: usize, count: usize| BvhNode {
+        min: b.min.to_array(),
+        offset: offset as u32,
+        max: b.max.to_array(),
+        count: count as u16,
+        axis: 0,
+        pad: 0,
+    };
+    let g = GROUP_WIDTH;
+    // Pre-order: root, leaf 0, interior over clusters 1 and 2, leaf 1, leaf 2.
+    let nodes = vec![
+        node(bounds_of(0..3 * g), 2, 0),
+        node(bounds_of(0..g), 0, g),
+        node(bounds_of(g..3 * g), 4, 0),
+        node(bounds_of(g..2 * g), g, g),
+        node(bounds_of(2 * g..3 * g), 2 * g, g),
+    ];
+    let b = Built::with_nodes(nodes, (0..3 * g as u32).collect(), &tris);
+    validate_wide(&b);
+    assert_eq!(b.wide.len(), 1, "one wide node");
+    let root = &b.wide[0];
+    let leaves: Vec<(u32, u16)> = (0..WIDTH)
+        .filter(|&l| root.count[l] > 0)
+        .map(|l| (root.child[l] & !WIDE_LEAF, root.count[l]))
+        .collect();
+    assert_eq!(leaves, [(0, g as u16), (g as u32, 2 * g as u16)]);
+    let o = Vec3::new(-1.0, 5e-4, 2e-4);
+    for x in [0.0f32, 10.0, 20.0] {
+        let d = (Vec3::new(x + 2e-4, 2e-4, 0.0) - o).normalize();
+        assert_same_hits(&b, &tris, o, d, f32::INFINITY);
+    }
+
+    // Two leaves of `MAX_MERGED_GROUPS` groups in one box: as one leaf twice as many tests, but
+    // too large to be one.
+    let n = MAX_MERGED_GROUPS * g;
+    let tris: Vec<Tri> = (0..2 * n).map(|k| cluster(k as f32 * 1e-6)[0]).collect();
+    let all = (0..2 * n)
+        .map(|k| tri_bounds(&tris[k]))
+        .fold(Aabb::EMPTY, Aabb::union);
+    let nodes = vec![node(all, 2, 0), node(all, 0, n), node(all, n, n)];
+    let b = Built::with_nodes(nodes, (0..2 * n as u32).collect(), &tris);
+    validate_wide(&b);
+    let counts: Vec<u16> = (0..WIDTH).map(|l| b.wide[0].count[l]).collect();
+    assert_eq!(counts[..2], [n as u16, n as u16]);
 }
 
 /// The collapse of the smallest trees, its refusals of bad input, and the wide traversal on
@@ -1299,7 +1410,7 @@ fn build_errors_and_empty_scene() {
 fn leaves_aligned_to_groups_keep_their_triangles() {
     let tris = random_soup(3000, 11);
     let b = Built::new(&tris);
-    let mut leaves = 0;
+    let (mut leaves, mut multi_group) = (0, 0);
     for (w, g) in b.wide.iter().zip(&b.grouped) {
         for lane in 0..WIDTH {
             assert_eq!(w.count[lane], g.count[lane]);
@@ -1313,6 +1424,7 @@ fn leaves_aligned_to_groups_keep_their_triangles() {
                 continue;
             }
             leaves += 1;
+            multi_group += usize::from(count > GROUP_WIDTH);
             let (a, z) = (
                 (w.child[lane] & !WIDE_LEAF) as usize,
                 (g.child[lane] & !WIDE_LEAF) as usize,
@@ -1325,7 +1437,15 @@ fn leaves_aligned_to_groups_keep_their_triangles() {
                 .all(|&p| p == b.prim_order[a + count - 1]));
         }
     }
-    assert!(leaves > 3000 / MAX_LEAF_PRIMS, "{leaves} leaves");
+    // Leaves of one group and merged subtrees of several (`bvh::collapse`) both occur.
+    assert!(
+        leaves > 3000 / (MAX_MERGED_GROUPS * GROUP_WIDTH),
+        "{leaves} leaves"
+    );
+    assert!(
+        multi_group > 0 && multi_group < leaves,
+        "{multi_group} of {leaves} leaves span several groups"
+    );
     for (slot, &prim) in b.grouped_order.iter().enumerate() {
         assert_eq!(
             b.groups[slot / GROUP_WIDTH].triangle(slot % GROUP_WIDTH),

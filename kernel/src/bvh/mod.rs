@@ -22,7 +22,8 @@ pub use packet::{lower_bound, PacketOverflow, PACKET_STACK};
 pub use traverse::{Bvh, TRAVERSAL_STACK};
 pub use wide::{
     align_leaves, aligned_order_len, collapse, gather_leaf_groups, max_wide_nodes, WideBvh,
-    WideNode, SHORT_TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH, WIDE_TRAVERSAL_STACK, WIDTH,
+    WideNode, MAX_MERGED_GROUPS, NODE_COST, SHORT_TRAVERSAL_STACK, WIDE_LEAF, WIDE_MAX_DEPTH,
+    WIDE_TRAVERSAL_STACK, WIDTH,
 };
 
 use crate::geometry::{Aabb, TriangleGroup};

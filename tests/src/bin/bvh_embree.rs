@@ -572,6 +572,69 @@ fn check(
 
 // --------------------------------------------------------------------------- main
 
+/// The shape of the wide tree: lanes used per node, primitives and groups per leaf, and the
+/// surface-area estimate of what a ray that crosses the root box costs (nodes visited and
+/// triangle groups tested, each weighted by its box's area relative to the root's), the
+/// figures that a change of the build or the collapse moves before any timing does.
+fn tree_shape(data: &SceneData) -> String {
+    use ember_kernel::bvh::{WIDE_LEAF, WIDTH};
+    use ember_kernel::geometry::GROUP_WIDTH;
+    let nodes = &data.bvh_nodes;
+    let area = |lo: [f32; 3], hi: [f32; 3]| {
+        let e = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+        if e.iter().any(|&x| x < 0.0) {
+            0.0
+        } else {
+            2.0 * f64::from(e[0] * e[1] + e[1] * e[2] + e[2] * e[0])
+        }
+    };
+    let lane_box = |n: &ember_kernel::bvh::WideNode, l: usize| {
+        (
+            [n.lo[0][l], n.lo[1][l], n.lo[2][l]],
+            [n.hi[0][l], n.hi[1][l], n.hi[2][l]],
+        )
+    };
+    let node_area = |n: &ember_kernel::bvh::WideNode| {
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for l in 0..WIDTH {
+            let (a, b) = lane_box(n, l);
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        area(lo, hi)
+    };
+    let Some(root) = nodes.first() else {
+        return String::from("empty tree");
+    };
+    let root_area = node_area(root).max(f64::MIN_POSITIVE);
+    let (mut lanes, mut leaves, mut prims, mut groups) = (0usize, 0usize, 0usize, 0usize);
+    let (mut sah_nodes, mut sah_groups) = (0.0f64, 0.0f64);
+    for n in nodes {
+        sah_nodes += node_area(n) / root_area;
+        for l in 0..WIDTH {
+            let used = n.child[l] & WIDE_LEAF == 0 || n.count[l] > 0;
+            lanes += usize::from(used);
+            if n.child[l] & WIDE_LEAF != 0 && n.count[l] > 0 {
+                let c = usize::from(n.count[l]);
+                let g = c.div_ceil(GROUP_WIDTH);
+                leaves += 1;
+                prims += c;
+                groups += g;
+                let (a, b) = lane_box(n, l);
+                sah_groups += g as f64 * area(a, b) / root_area;
+            }
+        }
+    }
+    format!(
+        "tree shape: {:.2} of {WIDTH} lanes used per node, {leaves} leaves of {:.2} triangles in {:.2} groups of {GROUP_WIDTH}; surface-area estimate per ray through the root: {sah_nodes:.1} nodes, {sah_groups:.1} groups",
+        lanes as f64 / nodes.len() as f64,
+        prims as f64 / leaves.max(1) as f64,
+        groups as f64 / leaves.max(1) as f64,
+    )
+}
+
 fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
@@ -673,6 +736,7 @@ fn run(args: &Args) -> Res<()> {
             per_tri(bytes[3]),
             per_tri(bytes[4]),
         );
+        println!("{scene}: {}", tree_shape(&data));
         writeln!(
             json,
             "{{\"kind\": \"build\", \"scene\": \"{scene}\", \"simd\": \"{}\", \"bvh_width\": {}, \"triangles\": {n_tris}, \"vertices\": {}, \"nodes\": {}, \"build_s\": {}, \"bytes_nodes\": {}, \"bytes_prim_order\": {}, \"bytes_triangles\": {}, \"bytes_positions\": {}, \"bytes_leaf_groups\": {}}}",
