@@ -164,7 +164,9 @@ fn validate_wide(b: &Built) -> usize {
             (ranges[i + 1].0, ranges[node.offset as usize].1)
         };
     }
-    let subtrees: Vec<(u32, u16, [f32; 3], [f32; 3], bool)> = b
+    // (first slot, count, lower corner, upper corner, a binary leaf)
+    type Subtree = (u32, u16, [f32; 3], [f32; 3], bool);
+    let subtrees: Vec<Subtree> = b
         .nodes
         .iter()
         .zip(&ranges)
