@@ -144,6 +144,27 @@ impl Built {
     }
 }
 
+/// Whether the collapse's surface-area rule makes the binary subtree at `i` one leaf
+/// (`bvh::collapse`): `groups · A ≤ NODE_COST · A + Σ groups(leaf) · A(leaf)`, computed as the
+/// collapse computes it (the leaves summed in pre-order, in f32).
+fn merge_pays(b: &Built, ranges: &[(u32, u32)], i: usize) -> bool {
+    let (first, end) = ranges[i];
+    let groups = ((end - first) as usize).div_ceil(GROUP_WIDTH) as f32;
+    let area = b.nodes[i].bounds().surface_area();
+    let mut as_node = NODE_COST * area;
+    // The subtree's nodes follow it in pre-order up to its last leaf, which ends at `end`.
+    for n in &b.nodes[i..] {
+        if n.is_leaf() {
+            let groups = usize::from(n.count).div_ceil(GROUP_WIDTH) as f32;
+            as_node += groups * n.bounds().surface_area();
+            if n.offset + u32::from(n.count) == end {
+                break;
+            }
+        }
+    }
+    groups * area <= as_node
+}
+
 /// Checks the wide tree against the binary one it was collapsed from: children after their
 /// parent, each wide node reached once, lanes carrying the binary children's exact boxes,
 /// leaves covering every primitive slot once, and no deeper than the traversal stack allows.
@@ -238,6 +259,41 @@ fn validate_wide(b: &Built) -> usize {
         assert!(
             is_leaf || usize::from(count).div_ceil(GROUP_WIDTH) <= MAX_MERGED_GROUPS,
             "wide leaf {first}+{count}: a merged subtree over {MAX_MERGED_GROUPS} groups"
+        );
+        if !is_leaf {
+            let i = ranges
+                .iter()
+                .position(|&r| r == (first, first + u32::from(count)));
+            assert!(
+                merge_pays(b, &ranges, i.expect("binary subtree")),
+                "wide leaf {first}+{count}: merged against the surface-area cost"
+            );
+        }
+    }
+    // And a small subtree that the cost says to make one leaf is not a wide node: the slots
+    // under each wide node's lanes, bottom up (children come after their parent).
+    let mut spans = vec![(u32::MAX, 0u32); wide.len()];
+    for (i, node) in wide.iter().enumerate().rev() {
+        for lane in 0..WIDTH {
+            let (lo, hi) = if node.is_leaf(lane) {
+                if node.count[lane] == 0 {
+                    continue;
+                }
+                let first = node.child[lane] & !WIDE_LEAF;
+                (first, first + u32::from(node.count[lane]))
+            } else {
+                spans[node.child[lane] as usize]
+            };
+            spans[i] = (spans[i].0.min(lo), spans[i].1.max(hi));
+        }
+    }
+    for (i, &span) in spans.iter().enumerate().skip(1) {
+        let source = ranges.iter().position(|&r| r == span);
+        let source = source.expect("each wide node stands for a binary subtree");
+        let groups = ((span.1 - span.0) as usize).div_ceil(GROUP_WIDTH);
+        assert!(
+            groups > MAX_MERGED_GROUPS || !merge_pays(b, &ranges, source),
+            "wide node {i} over slots {span:?} would cost less as one leaf"
         );
     }
     let max = depth.into_iter().max().unwrap_or(1);
@@ -1152,23 +1208,64 @@ fn walks_that_outgrow_the_short_stack_are_made_again() {
     }
 }
 
-/// The collapse's choice between a small subtree as a node and as one leaf, on a tree made by
-/// hand: three far-apart clusters of one full group each, the first a leaf beside the
-/// subtree of the other two. As one leaf, the whole tree would cost three group tests per ray
-/// through its box, against `NODE_COST` (two) for the node plus next to nothing for the tiny
-/// clusters: it stays a node. The subtree of the last two clusters costs two tests as a leaf
-/// and `NODE_COST` plus next to nothing as a node: it becomes one leaf of two groups. A leaf
-/// beyond `MAX_MERGED_GROUPS` groups is never made, whatever the boxes.
+/// A binary tree made by hand for the collapse's merge rule.
+enum Shape {
+    /// Triangles `first..first + count`.
+    Leaf(usize, usize),
+    Node(Box<Shape>, Box<Shape>),
+}
+
+/// Appends `shape`'s nodes in pre-order (the build's layout) and returns their box.
+fn emit(shape: &Shape, tris: &[Tri], nodes: &mut Vec<BvhNode>) -> Aabb {
+    let at = nodes.len();
+    nodes.push(BvhNode::default());
+    let (bounds, offset, count) = match shape {
+        Shape::Leaf(first, count) => {
+            let b = tris[*first..first + count]
+                .iter()
+                .map(tri_bounds)
+                .fold(Aabb::EMPTY, Aabb::union);
+            (b, *first, *count)
+        }
+        Shape::Node(left, right) => {
+            let l = emit(left, tris, nodes);
+            let second = nodes.len();
+            (l.union(emit(right, tris, nodes)), second, 0)
+        }
+    };
+    nodes[at] = BvhNode {
+        min: bounds.min.to_array(),
+        offset: offset as u32,
+        max: bounds.max.to_array(),
+        count: count as u16,
+        axis: 0,
+        pad: 0,
+    };
+    bounds
+}
+
+/// The collapse's choice between a small subtree as a node and as one leaf. Seven clusters of
+/// one group each, far apart on the x axis, in a chain (each interior node holds one cluster
+/// beside the rest), end in a last subtree `tail` near the end of the chain: the collapse
+/// opens the chain, the largest boxes first, until the root's eight lanes hold the seven
+/// clusters and `tail`, which is then one leaf or a node of its own:
+/// - two far-apart clusters: two group tests as a leaf, against `NODE_COST` (two) plus next
+///   to nothing for the tiny clusters as a node: one leaf of two groups;
+/// - three: three tests against two and next to nothing: a node;
+/// - two leaves of `MAX_MERGED_GROUPS` groups each in one spot: a leaf would cost less
+///   (`16·A` against `(2 + 16)·A`) but is larger than any leaf the collapse makes: a node.
 #[test]
 fn small_subtrees_become_leaves_where_the_surface_area_cost_says() {
     assert_eq!(
         NODE_COST, 2.0,
         "the cases below are set for a node cost of two groups"
     );
-    let cluster = |x: f32| -> Vec<Tri> {
-        (0..GROUP_WIDTH)
+    let g = GROUP_WIDTH;
+    // `count` tiny triangles at x, stacked in z.
+    let cluster = |x: f32, count: usize| -> Vec<Tri> {
+        (0..count)
             .map(|k| {
-                let z = k as f32 * 1e-3;
+                let z = k as f32 * 1e-4;
                 [
                     Vec3::new(x, 0.0, z),
                     Vec3::new(x + 1e-3, 0.0, z),
@@ -1177,55 +1274,56 @@ fn small_subtrees_become_leaves_where_the_surface_area_cost_says() {
             })
             .collect()
     };
-    let tris: Vec<Tri> = [0.0, 10.0, 20.0].into_iter().flat_map(cluster).collect();
-    let bounds_of = |ks: std::ops::Range<usize>| {
-        ks.map(|k| tri_bounds(&tris[k]))
-            .fold(Aabb::EMPTY, Aabb::union)
-    };
-    let node = |b: Aabb, offset: usize, count: usize| BvhNode {
-        min: b.min.to_array(),
-        offset: offset as u32,
-        max: b.max.to_array(),
-        count: count as u16,
-        axis: 0,
-        pad: 0,
-    };
-    let g = GROUP_WIDTH;
-    // Pre-order: root, leaf 0, interior over clusters 1 and 2, leaf 1, leaf 2.
-    let nodes = vec![
-        node(bounds_of(0..3 * g), 2, 0),
-        node(bounds_of(0..g), 0, g),
-        node(bounds_of(g..3 * g), 4, 0),
-        node(bounds_of(g..2 * g), g, g),
-        node(bounds_of(2 * g..3 * g), 2 * g, g),
+    let big = MAX_MERGED_GROUPS * g;
+    // (the tail's clusters as (x, triangles), the root's leaves of several groups as
+    // (first slot, count), wide nodes)
+    type Case<'a> = (&'a [(f32, usize)], Vec<(u32, u16)>, usize);
+    let tails: [Case; 3] = [
+        (
+            &[(700.0, g), (710.0, g)],
+            vec![(7 * g as u32, 2 * g as u16)],
+            1,
+        ),
+        (&[(700.0, g), (710.0, g), (720.0, g)], vec![], 2),
+        (&[(700.0, big), (700.0, big)], vec![], 2),
     ];
-    let b = Built::with_nodes(nodes, (0..3 * g as u32).collect(), &tris);
-    validate_wide(&b);
-    assert_eq!(b.wide.len(), 1, "one wide node");
-    let root = &b.wide[0];
-    let leaves: Vec<(u32, u16)> = (0..WIDTH)
-        .filter(|&l| root.count[l] > 0)
-        .map(|l| (root.child[l] & !WIDE_LEAF, root.count[l]))
-        .collect();
-    assert_eq!(leaves, [(0, g as u16), (g as u32, 2 * g as u16)]);
-    let o = Vec3::new(-1.0, 5e-4, 2e-4);
-    for x in [0.0f32, 10.0, 20.0] {
-        let d = (Vec3::new(x + 2e-4, 2e-4, 0.0) - o).normalize();
-        assert_same_hits(&b, &tris, o, d, f32::INFINITY);
+    for (tail, merged, wide_nodes) in tails {
+        let mut tris: Vec<Tri> = (0..7).flat_map(|k| cluster(100.0 * k as f32, g)).collect();
+        // The tail: a chain over its clusters too.
+        let mut shape: Option<Shape> = None;
+        let mut firsts = Vec::new();
+        for &(x, count) in tail {
+            firsts.push((tris.len(), count));
+            tris.extend(cluster(x, count));
+        }
+        for &(first, count) in firsts.iter().rev() {
+            let leaf = Shape::Leaf(first, count);
+            shape = Some(match shape {
+                None => leaf,
+                Some(rest) => Shape::Node(Box::new(leaf), Box::new(rest)),
+            });
+        }
+        for k in (0..7).rev() {
+            let rest = shape.take().expect("tail");
+            shape = Some(Shape::Node(Box::new(Shape::Leaf(k * g, g)), Box::new(rest)));
+        }
+        let mut nodes = Vec::new();
+        emit(&shape.expect("tree"), &tris, &mut nodes);
+        let b = Built::with_nodes(nodes, (0..tris.len() as u32).collect(), &tris);
+        validate_wide(&b);
+        assert_eq!(b.wide.len(), wide_nodes, "tail {tail:?}");
+        let root = &b.wide[0];
+        let multi: Vec<(u32, u16)> = (0..WIDTH)
+            .filter(|&l| root.is_leaf(l) && usize::from(root.count[l]) > g)
+            .map(|l| (root.child[l] & !WIDE_LEAF, root.count[l]))
+            .collect();
+        assert_eq!(multi, merged, "tail {tail:?}");
+        let o = Vec3::new(-1.0, 5e-4, 2e-4);
+        for &(x, _) in tail {
+            let d = (Vec3::new(x + 2e-4, 2e-4, 0.0) - o).normalize();
+            assert_same_hits(&b, &tris, o, d, f32::INFINITY);
+        }
     }
-
-    // Two leaves of `MAX_MERGED_GROUPS` groups in one box: as one leaf twice as many tests, but
-    // too large to be one.
-    let n = MAX_MERGED_GROUPS * g;
-    let tris: Vec<Tri> = (0..2 * n).map(|k| cluster(k as f32 * 1e-6)[0]).collect();
-    let all = (0..2 * n)
-        .map(|k| tri_bounds(&tris[k]))
-        .fold(Aabb::EMPTY, Aabb::union);
-    let nodes = vec![node(all, 2, 0), node(all, 0, n), node(all, n, n)];
-    let b = Built::with_nodes(nodes, (0..2 * n as u32).collect(), &tris);
-    validate_wide(&b);
-    let counts: Vec<u16> = (0..WIDTH).map(|l| b.wide[0].count[l]).collect();
-    assert_eq!(counts[..2], [n as u16, n as u16]);
 }
 
 /// The collapse of the smallest trees, its refusals of bad input, and the wide traversal on

@@ -67,8 +67,8 @@ pub const WIDE_LEAF: u32 = 1 << 31;
 /// group test: a node is as many bytes as a group (256 against 288 with eight lanes) but its
 /// visit also sorts and pushes the children entered. The tree shapes of `ember-bvh-embree`
 /// (8 lanes, Intel Xeon with AVX-512, 2026-12-06) at 0 (no merging), 1.0, 1.5, 2.0 and 3.0:
-/// lanes used per node 3.8, 4.5, 5.1, 6.0, 7.1 on the 1M-triangle sphere, and at 2.0 its rays
-/// were 13–22% faster than without merging, the Cornell box's about level (medians of three
+/// lanes used per node 3.8, 4.5, 5.1, 6.0, 7.1 on the 1M-triangle sphere. At 2.0 its rays were
+/// 10–32% faster than without merging and the Cornell box's 6–16% (medians of three
 /// alternating runs); 3.0 was slower than 2.0 on both.
 pub const NODE_COST: f32 = 2.0;
 /// Largest subtree, in triangle groups, that the collapse considers making one leaf.
@@ -131,7 +131,8 @@ pub const fn max_wide_nodes(binary_nodes: usize) -> usize {
 /// its primitive order; returns the number of wide nodes written (breadth-first, root first,
 /// so every child comes after its parent).
 ///
-/// Each wide leaf is a binary leaf or a small binary subtree made one leaf: a subtree of at
+/// A wide node opens the binary children of largest surface area until its lanes are full;
+/// each interior child then left is a wide node of its own or, if small, one leaf: a subtree of at
 /// most [`MAX_MERGED_GROUPS`] groups whose surface-area cost as a leaf, `groups · A`, is at
 /// most that of a node over its leaves, `NODE_COST · A + Σ groups(leaf) · A(leaf)` ([`NODE_COST`];
 /// a lower bound when the subtree has more leaves than a node has lanes). The binary build
@@ -187,20 +188,19 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
     while next < used {
         let [source, depth, ..] = wide[next].child;
         // Open the interior child of largest surface area (the likeliest to be entered) until
-        // there are `WIDTH` children or only leaves (binary leaves and subtrees made leaves).
+        // there are `WIDTH` children or only binary leaves. (Opening first the children too
+        // costly as one leaf, and the others only into lanes left free, made the Cornell box's
+        // leaves larger and 3.5 instead of 2.1 group tests per ray through its box.)
         let mut lanes = [0u32; WIDTH];
-        let mut leaves = [None; WIDTH];
-        let [first, second] = children(source)?;
-        lanes[..2].copy_from_slice(&[first, second]);
-        leaves[0] = as_leaf(binary, first)?;
-        leaves[1] = as_leaf(binary, second)?;
+        lanes[..2].copy_from_slice(&children(source)?);
         let mut n = 2;
         while n < WIDTH {
             let mut open = None;
             let mut largest = f32::NEG_INFINITY;
             for (l, &b) in lanes[..n].iter().enumerate() {
-                let area = binary[b as usize].bounds().surface_area();
-                if leaves[l].is_none() && (open.is_none() || area > largest) {
+                let node = &binary[b as usize];
+                let area = node.bounds().surface_area();
+                if !node.is_leaf() && (open.is_none() || area > largest) {
                     (open, largest) = (Some(l), area);
                 }
             }
@@ -209,18 +209,15 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
             };
             let parent = lanes[open];
             lanes.copy_within(open + 1..n, open);
-            leaves.copy_within(open + 1..n, open);
-            let [first, second] = children(parent)?;
-            lanes[n - 1..n + 1].copy_from_slice(&[first, second]);
-            leaves[n - 1] = as_leaf(binary, first)?;
-            leaves[n] = as_leaf(binary, second)?;
+            lanes[n - 1..n + 1].copy_from_slice(&children(parent)?);
             n += 1;
         }
+        // Then each interior child is one leaf or a wide node of its own.
         let mut filled = WideNode::default();
         for (lane, &b) in lanes[..n].iter().enumerate() {
             let child = &binary[b as usize];
-            if let Some(leaf) = &leaves[lane] {
-                set_lane(&mut filled, lane, leaf, leaf_reference(leaf)?);
+            if let Some(leaf) = as_leaf(binary, b)? {
+                set_lane(&mut filled, lane, &leaf, leaf_reference(&leaf)?);
                 continue;
             }
             let target = {
