@@ -1244,10 +1244,10 @@ fn emit(shape: &Shape, tris: &[Tri], nodes: &mut Vec<BvhNode>) -> Aabb {
     bounds
 }
 
-/// The collapse's choice between a small subtree as a node and as one leaf. Seven clusters of
-/// one group each, far apart on the x axis, in a chain (each interior node holds one cluster
-/// beside the rest), end in a last subtree `tail` near the end of the chain: the collapse
-/// opens the chain, the largest boxes first, until the root's eight lanes hold the seven
+/// The collapse's choice between a small subtree as a node and as one leaf. `WIDTH − 1`
+/// clusters of one group each, far apart on the x axis, in a chain (each interior node holds
+/// one cluster beside the rest), end in a last subtree `tail` near the end of the chain: the
+/// collapse opens the chain, the largest boxes first, until the root's lanes hold the
 /// clusters and `tail`, which is then one leaf or a node of its own:
 /// - two far-apart clusters: two group tests as a leaf, against `NODE_COST` (two) plus next
 ///   to nothing for the tiny clusters as a node: one leaf of two groups;
@@ -1275,20 +1275,23 @@ fn small_subtrees_become_leaves_where_the_surface_area_cost_says() {
             .collect()
     };
     let big = MAX_MERGED_GROUPS * g;
+    let chain = WIDTH - 1;
     // (the tail's clusters as (x, triangles), the root's leaves of several groups as
     // (first slot, count), wide nodes)
     type Case<'a> = (&'a [(f32, usize)], Vec<(u32, u16)>, usize);
     let tails: [Case; 3] = [
         (
             &[(700.0, g), (710.0, g)],
-            vec![(7 * g as u32, 2 * g as u16)],
+            vec![((chain * g) as u32, 2 * g as u16)],
             1,
         ),
         (&[(700.0, g), (710.0, g), (720.0, g)], vec![], 2),
         (&[(700.0, big), (700.0, big)], vec![], 2),
     ];
     for (tail, merged, wide_nodes) in tails {
-        let mut tris: Vec<Tri> = (0..7).flat_map(|k| cluster(100.0 * k as f32, g)).collect();
+        let mut tris: Vec<Tri> = (0..chain)
+            .flat_map(|k| cluster(100.0 * k as f32, g))
+            .collect();
         // The tail: a chain over its clusters too.
         let mut shape: Option<Shape> = None;
         let mut firsts = Vec::new();
@@ -1303,7 +1306,7 @@ fn small_subtrees_become_leaves_where_the_surface_area_cost_says() {
                 Some(rest) => Shape::Node(Box::new(leaf), Box::new(rest)),
             });
         }
-        for k in (0..7).rev() {
+        for k in (0..chain).rev() {
             let rest = shape.take().expect("tail");
             shape = Some(Shape::Node(Box::new(Shape::Leaf(k * g, g)), Box::new(rest)));
         }
