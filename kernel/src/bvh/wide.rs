@@ -220,21 +220,18 @@ pub fn collapse(binary: &[BvhNode], wide: &mut [WideNode]) -> Result<usize, BvhE
                 set_lane(&mut filled, lane, &leaf, leaf_reference(&leaf)?);
                 continue;
             }
-            let target = {
-                if used == wide.len() {
-                    return Err(BvhError::Malformed);
-                }
-                // The traversal stack holds `WIDTH − 1` entries per level of this depth.
-                if depth as usize >= WIDE_MAX_DEPTH {
-                    return Err(BvhError::TooDeep);
-                }
-                wide[used] = WideNode::default();
-                wide[used].child[0] = b;
-                wide[used].child[1] = depth + 1;
-                used += 1;
-                (used - 1) as u32
-            };
-            set_lane(&mut filled, lane, child, target);
+            if used == wide.len() {
+                return Err(BvhError::Malformed);
+            }
+            // The traversal stack holds `WIDTH − 1` entries per level of this depth.
+            if depth as usize >= WIDE_MAX_DEPTH {
+                return Err(BvhError::TooDeep);
+            }
+            wide[used] = WideNode::default();
+            wide[used].child[0] = b;
+            wide[used].child[1] = depth + 1;
+            set_lane(&mut filled, lane, child, used as u32);
+            used += 1;
         }
         wide[next] = filled;
         next += 1;

@@ -577,33 +577,20 @@ fn check(
 /// triangle groups tested, each weighted by its box's area relative to the root's), the
 /// figures that a change of the build or the collapse moves before any timing does.
 fn tree_shape(data: &SceneData) -> String {
-    use ember_kernel::bvh::{WIDE_LEAF, WIDTH};
-    use ember_kernel::geometry::GROUP_WIDTH;
+    use ember_kernel::bvh::{WideNode, WIDE_LEAF, WIDTH};
+    use ember_kernel::geometry::{Aabb, GROUP_WIDTH};
     let nodes = &data.bvh_nodes;
-    let area = |lo: [f32; 3], hi: [f32; 3]| {
-        let e = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
-        if e.iter().any(|&x| x < 0.0) {
-            0.0
-        } else {
-            2.0 * f64::from(e[0] * e[1] + e[1] * e[2] + e[2] * e[0])
-        }
+    let lane_box = |n: &WideNode, l: usize| Aabb {
+        min: Vec3::new(n.lo[0][l], n.lo[1][l], n.lo[2][l]),
+        max: Vec3::new(n.hi[0][l], n.hi[1][l], n.hi[2][l]),
     };
-    let lane_box = |n: &ember_kernel::bvh::WideNode, l: usize| {
-        (
-            [n.lo[0][l], n.lo[1][l], n.lo[2][l]],
-            [n.hi[0][l], n.hi[1][l], n.hi[2][l]],
+    let area = |b: Aabb| f64::from(b.surface_area());
+    let node_area = |n: &WideNode| {
+        area(
+            (0..WIDTH)
+                .map(|l| lane_box(n, l))
+                .fold(Aabb::EMPTY, Aabb::union),
         )
-    };
-    let node_area = |n: &ember_kernel::bvh::WideNode| {
-        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        for l in 0..WIDTH {
-            let (a, b) = lane_box(n, l);
-            for k in 0..3 {
-                lo[k] = lo[k].min(a[k]);
-                hi[k] = hi[k].max(b[k]);
-            }
-        }
-        area(lo, hi)
     };
     let Some(root) = nodes.first() else {
         return String::from("empty tree");
@@ -622,8 +609,7 @@ fn tree_shape(data: &SceneData) -> String {
                 leaves += 1;
                 prims += c;
                 groups += g;
-                let (a, b) = lane_box(n, l);
-                sah_groups += g as f64 * area(a, b) / root_area;
+                sah_groups += g as f64 * area(lane_box(n, l)) / root_area;
             }
         }
     }
