@@ -105,34 +105,67 @@ if command -v taskset >/dev/null; then
     pin=(taskset -c "$(taskset -pc $$ | sed 's/.*: *//; s/[-,].*//')")
 fi
 echo "== uptime: $(uptime)"
-# One process per scene and thread count (each well under 2 minutes).
-: >"$RES/ember-1t.jsonl"; : >"$RES/ember-1t.txt"; : >"$RES/ember-2t.jsonl"; : >"$RES/ember-2t.txt"
-: >"$RES/ember-native-1t.jsonl"; : >"$RES/ember-native-1t.txt"
-: >"$RES/ember-native-2t.jsonl"; : >"$RES/ember-native-2t.txt"
-for s in ${SCENES//,/ }; do
-    for build in portable native; do
-        bin="$BIN"; tag=""
-        if [ "$build" = native ]; then
-            [ -n "$NBIN" ] || continue
-            bin="$NBIN"; tag="-native"
-        fi
-        echo "== ember ($build build) $s, 1 thread"
-        "${pin[@]}" "$bin" "$DATA" --scenes "$s" --threads 1 --passes "$PASSES" --json "$RES/part.jsonl" \
-            | tee -a "$RES/ember$tag-1t.txt"
-        cat "$RES/part.jsonl" >>"$RES/ember$tag-1t.jsonl"
-        echo "== ember ($build build) $s, 2 threads"
-        "$bin" "$DATA" --scenes "$s" --threads 2 --passes "$PASSES" --json "$RES/part.jsonl" \
-            | tee -a "$RES/ember$tag-2t.txt"
-        cat "$RES/part.jsonl" >>"$RES/ember$tag-2t.jsonl"
+# Interleaved: in each of ROUNDS rounds, every scene runs ember (portable, then native; 1 thread
+# pinned, then 2) and then Embree (bench.py for that scene alone: 1 thread, 2, robust), so that
+# both sides of a ratio are measured minutes apart and this instance's drift (10-30% within an
+# hour) falls on both. One process per scene, build and thread count, each well under 2 minutes.
+for f in ember-1t ember-2t ember-native-1t ember-native-2t; do : >"$RES/$f.jsonl"; : >"$RES/$f.txt"; done
+rm -rf "$RES/embree-rounds"; mkdir -p "$RES/embree-rounds"
+# What other processes take meanwhile (ember's binary also measures it itself, per row).
+python3 "$HERE/cpu_other.py" "$(ps -o pgid= $$ | tr -d ' ')" "$RES/embree-other-cpu.json" &
+sampler=$!
+for ((round = 0; round < ROUNDS; round++)); do
+    for s in ${SCENES//,/ }; do
+        for build in portable native; do
+            bin="$BIN"; tag=""
+            if [ "$build" = native ]; then
+                [ -n "$NBIN" ] || continue
+                bin="$NBIN"; tag="-native"
+            fi
+            for threads in 1 2; do
+                echo "== round $round: ember ($build build) $s, $threads thread(s)"
+                run=("$bin")
+                [ "$threads" = 1 ] && run=("${pin[@]}" "$bin")
+                "${run[@]}" "$DATA" --scenes "$s" --threads "$threads" --passes "$PASSES" \
+                    --json "$RES/part.jsonl" | tee -a "$RES/ember$tag-${threads}t.txt"
+                # Each row tagged with its round (table.py pools the rounds' passes).
+                python3 -c 'import json, sys
+for line in open(sys.argv[1]):
+    if line.strip():
+        r = json.loads(line); r["round"] = int(sys.argv[2]); print(json.dumps(r))' \
+                    "$RES/part.jsonl" "$round" >>"$RES/ember$tag-${threads}t.jsonl"
+            done
+        done
+        echo "== round $round: Embree $s (bench.py --skip-native --scenes $s --rounds 1)"
+        (cd "$DATA" && "${embree_env[@]}" "$VENV/bin/python" bench.py --skip-native --scenes "$s" \
+            --rounds 1 --reps "$PASSES")
+        cp "$DATA/results/bench_results.json" "$RES/embree-rounds/$round-$s.json"
     done
 done
 rm -f "$RES/part.jsonl"
-echo "== Embree: bench.py --skip-native"
-# What other processes take meanwhile (ember's binary measures this itself, per row).
-python3 "$HERE/cpu_other.py" "$(ps -o pgid= $$ | tr -d ' ')" "$RES/embree-other-cpu.json" &
-sampler=$!
-(cd "$DATA" && "${embree_env[@]}" "$VENV/bin/python" bench.py --skip-native --scenes "$SCENES" --rounds "$ROUNDS" --reps "$PASSES")
 kill "$sampler"; wait "$sampler" || true
+# One bench_results.json over all rounds and scenes, as one bench.py run would write it.
+python3 - "$RES/embree-rounds" "$DATA/results/bench_results.json" "$ROUNDS" <<'PY'
+import glob, json, os, sys
+parts = sorted(glob.glob(os.path.join(sys.argv[1], "*.json")))
+results, metas = [], []
+for p in parts:
+    d = json.load(open(p))
+    rnd = int(os.path.basename(p).split("-", 1)[0])
+    for r in d["results"]:
+        r["round"] = rnd
+    results += d["results"]
+    metas.append(d["meta"])
+meta = dict(metas[0])
+meta["rounds"] = int(sys.argv[3])
+meta["scenes"] = list(dict.fromkeys(s for m in metas for s in m["scenes"]))
+meta["load_end"] = metas[-1].get("load_end", "?")
+meta["total_s"] = sum(m.get("total_s", 0) for m in metas)
+meta["interleaved"] = True
+json.dump(dict(meta=meta, results=results), open(sys.argv[2], "w"), indent=1)
+PY
+rm -rf "$RES/embree-rounds"
+(cd "$DATA" && "$VENV/bin/python" bench.py --report-only)
 cp "$DATA/results/bench_results.json" "$DATA/RESULTS.md" "$RES/"
 echo "== uptime: $(uptime)"
 native=()

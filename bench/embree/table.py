@@ -22,6 +22,49 @@ def load_jsonl(paths):
     return rows
 
 
+def pool_rounds(rows):
+    """ember's trace rows by (scene, ray set, query, threads), the rounds of run.sh pooled as
+    bench.py's `aggregate` pools Embree's: all timed passes together, the median pass, and each
+    round's median kept in round order; the build rows of the first round."""
+    builds, groups = {}, {}
+    for r in rows:
+        if r["kind"] == "build":
+            builds.setdefault(r["scene"], r)
+        else:
+            groups.setdefault((r["scene"], r["rayset"], r["query"], r["threads"]), []).append(r)
+    traces = {}
+    for key, rs in groups.items():
+        rs = sorted(rs, key=lambda r: r.get("round", 0))
+        a = dict(rs[0])
+        a["times_s"] = [t for r in rs for t in r["times_s"]]
+        ts = sorted(a["times_s"])
+        a["median_s"] = ts[len(ts) // 2]
+        a["round_medians_s"] = [r["median_s"] for r in rs]
+        a["rounds"] = len(rs)
+        hashes = {r.get("results_hash") for r in rs}
+        a["results_hash"] = hashes.pop() if len(hashes) == 1 else "differs between rounds"
+        other = [r["other_cores"] for r in rs if r.get("other_cores") is not None]
+        a["other_cores"] = max(other) if other else None
+        a["loadavg_before"] = rs[0].get("loadavg_before")
+        a["loadavg_after"] = rs[-1].get("loadavg_after")
+        traces[key] = a
+    return builds, traces
+
+
+def round_ratios(e, x):
+    """ember / Embree speed in each round both ran (Embree's median pass time over ember's)."""
+    return [xs / es for es, xs in zip(e.get("round_medians_s", []), x.get("round_medians_s", []))]
+
+
+def ratio_cell(e, x, em, xm):
+    """`ember / Embree` of the pooled medians, with the range of the per-round ratios."""
+    if not (em and xm):
+        return "–"
+    rr = round_ratios(e, x)
+    spread = f" ({min(rr):.2f}–{max(rr):.2f})" if len(rr) > 1 else ""
+    return f"{em / xm:.2f}{spread}"
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True, help="bench-embree directory (with results/bench_results.json)")
@@ -42,21 +85,9 @@ def main():
     for r in aggregate(bench["results"]):
         if r["impl"] == "embreex" and r["packet"] == 1:
             embree[(r["scene"], r["rayset"], r["query"], r["threads"], r["robust"])] = r
-    ember_rows = load_jsonl(args.ember)
-    builds = {}
-    traces = {}
-    for r in ember_rows:
-        if r["kind"] == "build":
-            builds.setdefault(r["scene"], r)  # the first file's build (the pinned 1-thread run)
-        else:
-            traces[(r["scene"], r["rayset"], r["query"], r["threads"])] = r
-    native_builds = {}
-    native_traces = {}
-    for r in load_jsonl(args.ember_native):
-        if r["kind"] == "build":
-            native_builds.setdefault(r["scene"], r)
-        else:
-            native_traces[(r["scene"], r["rayset"], r["query"], r["threads"])] = r
+    # The first file's builds (the pinned 1-thread runs).
+    builds, traces = pool_rounds(load_jsonl(args.ember))
+    native_builds, native_traces = pool_rounds(load_jsonl(args.ember_native))
     native = bool(native_traces)
     meta = bench["meta"]
     scenes = [s for s in SCENES if s in builds]
@@ -83,24 +114,32 @@ def main():
         with open(sampler) as fh:
             c = json.load(fh)
         ser = sorted(c["series"]) or [0.0]
-        L.append(f"While Embree's bench.py ran ({c['seconds']} s sampled each second by `cpu_other.py`): other "
+        during = "the interleaved runs" if meta.get("interleaved") else "Embree's bench.py"
+        L.append(f"While {during} ran ({c['seconds']} s sampled each second by `cpu_other.py`): other "
                  f"processes took {c['mean_cores']:.2f} cores on average, median {ser[len(ser) // 2]:.2f}, "
                  f"max {c['max_cores']:.2f}; share of seconds above 0.2 cores: "
                  f"{sum(x > 0.2 for x in ser) / len(ser):.0%}.\n")
     if args.note:
         L.append(args.note + "\n")
-    passes = len(next(iter(traces.values()))["times_s"]) if traces else 0
+    first = next(iter(traces.values()), None)
+    rounds = first["rounds"] if first else 0
+    passes = len(first["times_s"]) // rounds if first else 0
     width = next(iter(builds.values())).get("bvh_width", 4)
     nwidth = next(iter(native_builds.values())).get("bvh_width", 4) if native_builds else None
     L.append(f"Mrays/s from the **median** pass. ember: `SceneView::intersect` / `SceneView::occluded` ({width}-wide "
-             f"BVH, watertight triangle test), 1 warm-up + {passes} timed passes, each writing t and triangle (or the "
-             "occlusion flag) per ray; 1 thread pinned to one CPU with `taskset`, 2 threads pulling 4096-ray chunks. "
+             f"BVH, watertight triangle test), {rounds} rounds (processes) x (1 warm-up + {passes} timed passes) pooled, "
+             "each pass writing t and triangle (or the occlusion flag) per ray; 1 thread pinned to one CPU with `taskset`, 2 threads pulling 4096-ray chunks. "
              f"Embree: `bench.py --skip-native` (embreex's Cython loop of `rtcIntersect1`/`rtcOccluded1`, "
              f"INTERSECT with output=True; 1 thread pinned, 2 threads = two Python threads on 32 chunks), "
              f"{meta['rounds']} rounds x {meta['reps']} passes pooled. The embreex loop carries a per-ray Python/Cython "
              "cost (reading numpy rows, writing 6 output arrays) that a C loop of `rtcIntersect1` does not pay, so "
              "Embree's own single-ray speed is higher than its column here, and ember/Embree is an upper bound on "
              "ember's standing (bench-embree's native C harness, the fair anchor, is not shipped).\n")
+    if meta.get("interleaved"):
+        L.append("**Interleaved**: each round runs every scene's ember processes (portable and native, 1 and 2 "
+                 "threads) and then Embree's for that scene, so both sides of a ratio are measured minutes apart and "
+                 "the drift of a shared machine falls on both. Ratios are of the pooled medians; in parentheses, the "
+                 "lowest and highest ratio of one round's medians.\n")
     if native:
         simd = next(iter(builds.values())).get("simd", "baseline")
         L.append(f"Two ember builds: **portable** (`cargo build --release`, baseline x86-64, {width}-wide nodes; its ray "
@@ -135,19 +174,19 @@ def main():
                 row = (f"| {s} | {builds[s]['triangles']:,} | {rayset} | {q} | {th} | "
                        f"{em:.2f}{busy} | " if em else f"| {s} | {builds[s]['triangles']:,} | {rayset} | {q} | {th} | – | ")
                 row += f"{xm:.2f} | " if xm else "– | "
-                row += f"{em / xm:.2f} |" if em and xm else "– |"
+                row += ratio_cell(e, x, em, xm) + " |"
                 if native:
                     n = native_traces.get((s, rayset, q, th))
                     nm = mrays(n) if n else None
                     nbusy = "*" if n and (n.get("other_cores") or 0) > 0.2 else ""
                     row += f" {nm:.2f}{nbusy} |" if nm else " – |"
-                    row += f" {nm / xm:.2f} |" if nm and xm else " – |"
+                    row += " " + ratio_cell(n, x, nm, xm) + " |" if n else " – |"
                     if n and e and n.get("results_hash") != e.get("results_hash"):
                         row += " (results differ!)"
                 if robust:
                     xr = embree.get((s, rayset, q, th, 1)) if th == 1 else None
                     xrm = mrays(xr) if xr else None
-                    row += f" {xrm:.2f} | {em / xrm:.2f} |" if xrm and em else " | |"
+                    row += f" {xrm:.2f} | {ratio_cell(e, xr, em, xrm)} |" if xrm and em else " | |"
                 L.append(row)
 
     L.append("\n## BVH build and memory\n")
