@@ -56,13 +56,21 @@ def round_ratios(e, x):
     return [xs / es for es, xs in zip(e.get("round_medians_s", []), x.get("round_medians_s", []))]
 
 
+def ratio(e, x):
+    """ember / Embree: the median of the per-round ratios when the rounds were interleaved (each
+    round's two medians measured minutes apart), else the ratio of the pooled medians."""
+    rr = sorted(round_ratios(e, x))
+    if len(rr) > 1 and len(rr) == e.get("rounds") == x.get("rounds"):
+        return rr[len(rr) // 2], (rr[0], rr[-1])
+    return x["median_s"] / e["median_s"], None
+
+
 def ratio_cell(e, x, em, xm):
-    """`ember / Embree` of the pooled medians, with the range of the per-round ratios."""
+    """`ember / Embree` ([`ratio`]), with the range of the per-round ratios."""
     if not (em and xm):
         return "–"
-    rr = round_ratios(e, x)
-    spread = f" ({min(rr):.2f}–{max(rr):.2f})" if len(rr) > 1 else ""
-    return f"{em / xm:.2f}{spread}"
+    r, spread = ratio(e, x)
+    return f"{r:.2f}" + (f" ({spread[0]:.2f}–{spread[1]:.2f})" if spread else "")
 
 
 def main():
@@ -138,8 +146,8 @@ def main():
     if meta.get("interleaved"):
         L.append("**Interleaved**: each round runs every scene's ember processes (portable and native, 1 and 2 "
                  "threads) and then Embree's for that scene, so both sides of a ratio are measured minutes apart and "
-                 "the drift of a shared machine falls on both. Ratios are of the pooled medians; in parentheses, the "
-                 "lowest and highest ratio of one round's medians.\n")
+                 "the drift of a shared machine falls on both. Mrays/s are the pooled medians; a ratio is the median of the "
+                 "rounds' ratios (each of one round's two medians), the lowest and highest in parentheses.\n")
     if native:
         simd = next(iter(builds.values())).get("simd", "baseline")
         L.append(f"Two ember builds: **portable** (`cargo build --release`, baseline x86-64, {width}-wide nodes; its ray "
