@@ -147,7 +147,9 @@ kill "$sampler"; wait "$sampler" || true
 # One bench_results.json over all rounds and scenes, as one bench.py run would write it.
 python3 - "$RES/embree-rounds" "$DATA/results/bench_results.json" "$ROUNDS" <<'PY'
 import glob, json, os, sys
-parts = sorted(glob.glob(os.path.join(sys.argv[1], "*.json")))
+# ROUND-SCENE.json, in round order (table.py pairs each round's ember and Embree medians).
+parts = sorted(glob.glob(os.path.join(sys.argv[1], "*.json")),
+               key=lambda p: int(os.path.basename(p).split("-", 1)[0]))
 results, metas = [], []
 for p in parts:
     d = json.load(open(p))

@@ -528,9 +528,9 @@ impl WideBvh<'_> {
             // distance bits and lane sorted by a branch-free 19-comparator network and all
             // `WIDTH` entries written at once. cachegrind's branch simulation on `bench/embree`'s
             // 1k-triangle sphere gave 22% fewer mispredictions but 16% more instructions (the
-            // scalar network, key packing and gather are ~170 per push), and it ran slower in
-            // alternating runs. An AVX2 network (`vpmaxud`, `vpermd`; some 40 instructions) is
-            // untried.
+            // scalar network, key packing and gather are ~170 per push), and it measured slower,
+            // not faster, in alternating runs. An AVX2 network (`vpmaxud`, `vpermd`; some 40
+            // instructions) is untried.
             let base = sp;
             // The lanes entered, lowest first: one iteration per entered box rather than a
             // branch per lane on the mask (that branch was the traversal's costliest

@@ -159,10 +159,10 @@ macro_rules! triangle_group {
                     // The permutation is the rotation that makes kz the last axis
                     // (`WatertightRay::new`: kx = kz + 1, ky = kx + 1, mod 3). Spelt out per
                     // case, so the loads need no bounds checks; the branch goes the same way
-                    // for every group a ray tests. (Loads at the axes `ray.k` names instead of the
-                    // branch: 6% fewer simulated mispredictions on the 1k-triangle sphere, as
-                    // many instructions, and no faster in nine alternating runs: the predictor
-                    // does better than cachegrind's model, and the loads wait on `k`.)
+                    // for every group a ray tests. (Tried, 2026-12-06: loads at the axes `ray.k`
+                    // names instead of the branch. 6% fewer mispredictions in cachegrind's model
+                    // on the 1k-triangle sphere, as many instructions, and not faster in nine
+                    // alternating runs; the loads then wait on `k`.)
                     let rotate = |v: [L; 3]| match kz {
                         0 => [v[1], v[2], v[0]],
                         1 => [v[2], v[0], v[1]],
