@@ -5,6 +5,7 @@
 #
 #   bench/embree/run.sh                              # everything (~10 min on a quiet 2-core machine)
 #   SCENES=cbox,sphere_1k ROUNDS=1 bench/embree/run.sh   # a smoke run (~1 min)
+#   LOCKSTEP_ONLY=1 bench/embree/run.sh             # only the lockstep ratios (lockstep.md)
 #   EMBREE_ISA=avx2 NATIVE_RUSTFLAGS="-C target-cpu=x86-64-v3" OUT=bench/embree/avx2 \
 #       bench/embree/run.sh                      # both limited to AVX2, as on an AVX2 machine
 #
@@ -99,53 +100,55 @@ if [ -n "$EMBREE_ISA" ]; then
     echo "== $isa_note"
 fi
 
-# One thread pinned to one CPU, as bench.py pins Embree's 1-thread runs.
-pin=()
-if command -v taskset >/dev/null; then
-    pin=(taskset -c "$(taskset -pc $$ | sed 's/.*: *//; s/[-,].*//')")
-fi
-echo "== uptime: $(uptime)"
-# Interleaved: in each of ROUNDS rounds, every scene runs ember (portable, then native; 1 thread
-# pinned, then 2) and then Embree (bench.py for that scene alone: 1 thread, 2, robust), so that
-# both sides of a ratio are measured minutes apart and this instance's drift (10-30% within an
-# hour) falls on both. One process per scene, build and thread count, each well under 2 minutes.
-for f in ember-1t ember-2t ember-native-1t ember-native-2t; do : >"$RES/$f.jsonl"; : >"$RES/$f.txt"; done
-rm -rf "$RES/embree-rounds"; mkdir -p "$RES/embree-rounds"
-# What other processes take meanwhile (ember's binary also measures it itself, per row).
-python3 "$HERE/cpu_other.py" "$(ps -o pgid= $$ | tr -d ' ')" "$RES/embree-other-cpu.json" &
-sampler=$!
-for ((round = 0; round < ROUNDS; round++)); do
-    for s in ${SCENES//,/ }; do
-        for build in portable native; do
-            bin="$BIN"; tag=""
-            if [ "$build" = native ]; then
-                [ -n "$NBIN" ] || continue
-                bin="$NBIN"; tag="-native"
-            fi
-            for threads in 1 2; do
-                echo "== round $round: ember ($build build) $s, $threads thread(s)"
-                run=("$bin")
-                [ "$threads" = 1 ] && run=("${pin[@]}" "$bin")
-                "${run[@]}" "$DATA" --scenes "$s" --threads "$threads" --passes "$PASSES" \
-                    --json "$RES/part.jsonl" | tee -a "$RES/ember$tag-${threads}t.txt"
-                # Each row tagged with its round (table.py pools the rounds' passes).
-                python3 -c 'import json, sys
-for line in open(sys.argv[1]):
-    if line.strip():
-        r = json.loads(line); r["round"] = int(sys.argv[2]); print(json.dumps(r))' \
-                    "$RES/part.jsonl" "$round" >>"$RES/ember$tag-${threads}t.jsonl"
+# LOCKSTEP_ONLY=1: only the lockstep ratios below (about 20 minutes for all scenes).
+if [ "${LOCKSTEP_ONLY:-0}" != 1 ]; then
+    # One thread pinned to one CPU, as bench.py pins Embree's 1-thread runs.
+    pin=()
+    if command -v taskset >/dev/null; then
+        pin=(taskset -c "$(taskset -pc $$ | sed 's/.*: *//; s/[-,].*//')")
+    fi
+    echo "== uptime: $(uptime)"
+    # Interleaved: in each of ROUNDS rounds, every scene runs ember (portable, then native; 1 thread
+    # pinned, then 2) and then Embree (bench.py for that scene alone: 1 thread, 2, robust), so that
+    # both sides of a ratio are measured minutes apart and this instance's drift (10-30% within an
+    # hour) falls on both. One process per scene, build and thread count, each well under 2 minutes.
+    for f in ember-1t ember-2t ember-native-1t ember-native-2t; do : >"$RES/$f.jsonl"; : >"$RES/$f.txt"; done
+    rm -rf "$RES/embree-rounds"; mkdir -p "$RES/embree-rounds"
+    # What other processes take meanwhile (ember's binary also measures it itself, per row).
+    python3 "$HERE/cpu_other.py" "$(ps -o pgid= $$ | tr -d ' ')" "$RES/embree-other-cpu.json" &
+    sampler=$!
+    for ((round = 0; round < ROUNDS; round++)); do
+        for s in ${SCENES//,/ }; do
+            for build in portable native; do
+                bin="$BIN"; tag=""
+                if [ "$build" = native ]; then
+                    [ -n "$NBIN" ] || continue
+                    bin="$NBIN"; tag="-native"
+                fi
+                for threads in 1 2; do
+                    echo "== round $round: ember ($build build) $s, $threads thread(s)"
+                    run=("$bin")
+                    [ "$threads" = 1 ] && run=("${pin[@]}" "$bin")
+                    "${run[@]}" "$DATA" --scenes "$s" --threads "$threads" --passes "$PASSES" \
+                        --json "$RES/part.jsonl" | tee -a "$RES/ember$tag-${threads}t.txt"
+                    # Each row tagged with its round (table.py pools the rounds' passes).
+                    python3 -c 'import json, sys
+    for line in open(sys.argv[1]):
+        if line.strip():
+            r = json.loads(line); r["round"] = int(sys.argv[2]); print(json.dumps(r))' \
+                        "$RES/part.jsonl" "$round" >>"$RES/ember$tag-${threads}t.jsonl"
+                done
             done
+            echo "== round $round: Embree $s (bench.py --skip-native --scenes $s --rounds 1)"
+            (cd "$DATA" && "${embree_env[@]}" "$VENV/bin/python" bench.py --skip-native --scenes "$s" \
+                --rounds 1 --reps "$PASSES")
+            cp "$DATA/results/bench_results.json" "$RES/embree-rounds/$round-$s.json"
         done
-        echo "== round $round: Embree $s (bench.py --skip-native --scenes $s --rounds 1)"
-        (cd "$DATA" && "${embree_env[@]}" "$VENV/bin/python" bench.py --skip-native --scenes "$s" \
-            --rounds 1 --reps "$PASSES")
-        cp "$DATA/results/bench_results.json" "$RES/embree-rounds/$round-$s.json"
     done
-done
-rm -f "$RES/part.jsonl"
-kill "$sampler"; wait "$sampler" || true
-# One bench_results.json over all rounds and scenes, as one bench.py run would write it.
-python3 - "$RES/embree-rounds" "$DATA/results/bench_results.json" "$ROUNDS" <<'PY'
+    rm -f "$RES/part.jsonl"
+    kill "$sampler"; wait "$sampler" || true
+    # One bench_results.json over all rounds and scenes, as one bench.py run would write it.
+    python3 - "$RES/embree-rounds" "$DATA/results/bench_results.json" "$ROUNDS" <<'PY'
 import glob, json, os, sys
 # ROUND-SCENE.json, in round order (table.py pairs each round's ember and Embree medians).
 parts = sorted(glob.glob(os.path.join(sys.argv[1], "*.json")),
@@ -166,12 +169,42 @@ meta["total_s"] = sum(m.get("total_s", 0) for m in metas)
 meta["interleaved"] = True
 json.dump(dict(meta=meta, results=results), open(sys.argv[2], "w"), indent=1)
 PY
-rm -rf "$RES/embree-rounds"
-(cd "$DATA" && "$VENV/bin/python" bench.py --report-only)
-cp "$DATA/results/bench_results.json" "$DATA/RESULTS.md" "$RES/"
-echo "== uptime: $(uptime)"
-native=()
-[ -n "$NBIN" ] && native=(--ember-native "$RES/ember-native-1t.jsonl" "$RES/ember-native-2t.jsonl"
-    --native-flags "$NATIVE_RUSTFLAGS")
-"$VENV/bin/python" "$HERE/table.py" --data "$DATA" --ember "$RES/ember-1t.jsonl" "$RES/ember-2t.jsonl" \
-    "${native[@]}" ${isa_note:+--note "$isa_note"} --out "$OUT/table.md"
+    rm -rf "$RES/embree-rounds"
+    (cd "$DATA" && "$VENV/bin/python" bench.py --report-only)
+    cp "$DATA/results/bench_results.json" "$DATA/RESULTS.md" "$RES/"
+    echo "== uptime: $(uptime)"
+    native=()
+    [ -n "$NBIN" ] && native=(--ember-native "$RES/ember-native-1t.jsonl" "$RES/ember-native-2t.jsonl"
+        --native-flags "$NATIVE_RUSTFLAGS")
+    "$VENV/bin/python" "$HERE/table.py" --data "$DATA" --ember "$RES/ember-1t.jsonl" "$RES/ember-2t.jsonl" \
+        "${native[@]}" ${isa_note:+--note "$isa_note"} --out "$OUT/table.md"
+fi
+
+# Lockstep ratios (lockstep.py): per scene and thread count, LOCKSTEP_EPOCHS epochs of fresh
+# processes (ember portable and native, Embree default and robust), each timing LOCKSTEP_ROUNDS
+# rounds of one pass per side in turn, so that each pair of passes is seconds apart; a ratio is
+# the median of the epochs' ratios with its 95% confidence interval. LOCKSTEP=0 skips it.
+if [ "${LOCKSTEP:-1}" != 0 ]; then
+    sides=(--ember "ember=$BIN")
+    [ -n "$NBIN" ] && sides+=(--ember "ember-native=$NBIN")
+    : >"$RES/lockstep.jsonl"
+    {
+        echo "# ember against Embree in lockstep ($(date -u '+%Y-%m-%d %H:%M') UTC)"
+        echo
+        echo "Generated by \`bench/embree/run.sh\` with \`bench/embree/lockstep.py\` (${LOCKSTEP_EPOCHS:-6} epochs x ${LOCKSTEP_ROUNDS:-4} rounds per row)${isa_note:+. $isa_note}"
+        echo
+    } >"$OUT/lockstep.md"
+    IFS=, read -ra scene_list <<<"$SCENES"
+    for threads in 1 2; do
+        for s in "${scene_list[@]}"; do
+            echo "== lockstep: $s, $threads thread(s)"
+            "${embree_env[@]}" "$VENV/bin/python" "$HERE/lockstep.py" "$DATA" --scene "$s" \
+                --threads "$threads" --epochs "${LOCKSTEP_EPOCHS:-6}" --rounds "${LOCKSTEP_ROUNDS:-4}" \
+                "${sides[@]}" --embree --robust \
+                --json "$RES/lockstep-part.jsonl" | tee -a "$OUT/lockstep.md"
+            cat "$RES/lockstep-part.jsonl" >>"$RES/lockstep.jsonl"
+            echo >>"$OUT/lockstep.md"
+        done
+    done
+    rm -f "$RES/lockstep-part.jsonl"
+fi

@@ -69,7 +69,10 @@ pub const WIDE_LEAF: u32 = 1 << 31;
 /// (8 lanes, Intel Xeon with AVX-512, 2026-12-06) at 0 (no merging), 1.0, 1.5, 2.0 and 3.0:
 /// lanes used per node 3.8, 4.5, 5.1, 6.0, 7.1 on the 1M-triangle sphere. At 2.0 its rays were
 /// 10–32% faster than without merging and the Cornell box's 6–16% (medians of three
-/// alternating runs); 3.0 was slower than 2.0 on both.
+/// alternating runs); 3.0 was slower than 2.0 on both. Timed again pass by pass against 2.0
+/// (`bench/embree/lockstep.py`, one pair of processes, 21 rounds, one thread), 1.5 and 3.0
+/// measured 0.95–1.02 of its speed on the Cornell box and the 1k and 10k spheres, within what
+/// two processes of one binary differ by (up to 8%).
 pub const NODE_COST: f32 = 2.0;
 /// Largest subtree, in triangle groups, that the collapse considers making one leaf.
 pub const MAX_MERGED_GROUPS: usize = 8;
@@ -529,8 +532,13 @@ impl WideBvh<'_> {
             // `WIDTH` entries written at once. cachegrind's branch simulation on `bench/embree`'s
             // 1k-triangle sphere gave 22% fewer mispredictions but 16% more instructions (the
             // scalar network, key packing and gather are ~170 per push), and it measured slower,
-            // not faster, in alternating runs. An AVX2 network (`vpmaxud`, `vpermd`; some 40
-            // instructions) is untried.
+            // not faster, in alternating runs. Also dropped: keys of the distance bits and
+            // reference, inserted by a fixed pass of integer compare-and-selects over the
+            // entries already pushed (no branch on the distances): in lockstep
+            // (`bench/embree/lockstep.py`, 6 epochs of 4 rounds) 0.90 (0.87–0.98) of this
+            // insertion's speed on the 1k sphere's camera rays, level on the other ray sets and
+            // on the Cornell box. An AVX2 network (`vpmaxud`, `vpermd`; some 40 instructions)
+            // is untried.
             let base = sp;
             // The lanes entered, lowest first: one iteration per entered box rather than a
             // branch per lane on the mask (that branch was the traversal's costliest
@@ -642,6 +650,8 @@ impl<L: BoxLanes<WIDTH>> Slab<L> {
         let mut t0 = L::splat(isa, f32::NEG_INFINITY);
         let mut t1 = L::splat(isa, f32::INFINITY);
         for axis in 0..3 {
+            // (Selecting the corners by index instead of this branch, which goes the same way
+            // at every node a ray visits, measured level or slower in lockstep: 0.97–1.01.)
             let (near, far) = if self.neg[axis] {
                 (&node.hi[axis], &node.lo[axis])
             } else {

@@ -22,6 +22,12 @@
 //! that start within 1e-5 of a wall). Each mismatch is classified by the hit that one side
 //! found and the other did not (or the nearer one): near a triangle edge, grazing, an interior
 //! hit so close to the origin that ember's conservative t > 0 test rejects it, or other.
+//!
+//! With `--serve` (one scene), it builds the BVH once, prints `ready`, and then times one pass
+//! per line read from stdin, `SET QUERY THREADS` (e.g. `camera INTERSECT 1`), answering
+//! `SECONDS RESULTS_HASH`; `bench/embree/lockstep.py` drives it pass by pass against Embree
+//! (or another build), so that both sides of a ratio are measured within a second of each
+//! other.
 
 use ember_cli::mesh::SceneData;
 use ember_kernel::geometry::{intersect_triangle, Ray};
@@ -77,6 +83,7 @@ struct Args {
     passes: usize,
     t_tol: f64,
     json: Option<PathBuf>,
+    serve: bool,
 }
 
 fn parse_args() -> Res<Args> {
@@ -87,6 +94,7 @@ fn parse_args() -> Res<Args> {
         passes: 3,
         t_tol: 1e-4,
         json: None,
+        serve: false,
     };
     let mut it = std::env::args().skip(1);
     let mut data = None;
@@ -103,8 +111,9 @@ fn parse_args() -> Res<Args> {
             "--passes" => args.passes = value()?.parse().map_err(|e| format!("--passes: {e}"))?,
             "--t-tol" => args.t_tol = value()?.parse().map_err(|e| format!("--t-tol: {e}"))?,
             "--json" => args.json = Some(value()?.into()),
+            "--serve" => args.serve = true,
             "-h" | "--help" => {
-                println!("usage: ember-bvh-embree DATA_DIR [--scenes a,b] [--threads 1,2] [--passes 3] [--t-tol 1e-4] [--json FILE]");
+                println!("usage: ember-bvh-embree DATA_DIR [--scenes a,b] [--threads 1,2] [--passes 3] [--t-tol 1e-4] [--json FILE] [--serve]");
                 std::process::exit(0);
             }
             _ if a.starts_with('-') => return Err(format!("unknown option {a}")),
@@ -115,6 +124,9 @@ fn parse_args() -> Res<Args> {
     args.data = data.ok_or("usage: ember-bvh-embree DATA_DIR [options] (--help)")?;
     if args.passes == 0 || args.threads.contains(&0) {
         return Err("--passes and --threads must be positive".into());
+    }
+    if args.serve && args.scenes.len() != 1 {
+        return Err("--serve needs exactly one scene (--scenes NAME)".into());
     }
     Ok(args)
 }
@@ -821,10 +833,67 @@ fn run(args: &Args) -> Res<()> {
     Ok(())
 }
 
+/// `--serve`: one scene's BVH built once, then one timed pass per request line on stdin
+/// (`SET QUERY THREADS`), answered on stdout as `SECONDS RESULTS_HASH`; an empty line or end of
+/// input ends it. The ray sets are loaded on first use.
+fn serve(args: &Args) -> Res<()> {
+    use std::io::BufRead as _;
+    let scene = &args.scenes[0];
+    let (positions, triangles) = load_scene(&args.data, scene)?;
+    let mut data = SceneData {
+        positions,
+        triangles,
+        ..SceneData::default()
+    };
+    data.build_bvh()?;
+    let view = data.view();
+    let mut sets: Vec<(String, Vec<Ray>)> = Vec::new();
+    let mut out = Vec::new();
+    println!(
+        "ready {scene} {} triangles, ray queries in {} lanes",
+        data.triangles.len(),
+        ember_cli::simd::in_use()
+    );
+    for line in std::io::stdin().lock().lines() {
+        let line = line.map_err(|e| format!("stdin: {e}"))?;
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let [set, query, threads] = words[..] else {
+            if words.is_empty() {
+                break;
+            }
+            return Err(format!(
+                "--serve: expected `SET QUERY THREADS`, got `{line}`"
+            ));
+        };
+        let q = match query {
+            "INTERSECT" => Query::Intersect,
+            "OCCLUDED" => Query::Occluded,
+            _ => return Err(format!("--serve: unknown query `{query}`")),
+        };
+        let threads: usize = threads
+            .parse()
+            .ok()
+            .filter(|&t| t > 0)
+            .ok_or(format!("--serve: bad thread count `{threads}`"))?;
+        let at = match sets.iter().position(|(name, _)| name == set) {
+            Some(at) => at,
+            None => {
+                sets.push((set.to_string(), load_rays(&args.data, scene, set)?));
+                sets.len() - 1
+            }
+        };
+        let rays = &sets[at].1;
+        out.resize(rays.len(), Out::default());
+        let seconds = trace(&view, q, rays, &mut out, threads);
+        println!("{seconds:.9} {:016x}", results_hash(&out));
+    }
+    Ok(())
+}
+
 fn main() {
     if let Err(e) = ember_cli::simd::apply_env()
         .and_then(|()| parse_args())
-        .and_then(|a| run(&a))
+        .and_then(|a| if a.serve { serve(&a) } else { run(&a) })
     {
         eprintln!("ember-bvh-embree: {e}");
         std::process::exit(1);
