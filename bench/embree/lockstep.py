@@ -139,21 +139,20 @@ def load_rays(data, scene, rayset):
 
 
 def cpu_line():
-    model, flags = platform.processor(), []
+    model, flags = "", []
     try:
         with open("/proc/cpuinfo") as f:
             for line in f:
                 if line.startswith("model name") and not model:
                     model = line.split(":", 1)[1].strip()
-                elif line.startswith("model name"):
-                    model = line.split(":", 1)[1].strip()
-                if line.startswith("flags"):
+                elif line.startswith("flags"):
                     have = set(line.split(":", 1)[1].split())
                     flags = [f for f in ["sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq",
                                          "avx512bw", "avx512vl"] if f in have]
                     break
     except OSError:
         pass
+    model = model or platform.processor() or "unknown CPU"
     return f"{model}, {os.cpu_count()} CPUs; SIMD: {' '.join(flags) or 'unknown'}"
 
 
@@ -212,7 +211,7 @@ def main():
           f"and BVHs and, per set, {a.rounds} rounds of one pass per side (the first side rotating); an epoch's "
           "ratio is the median of its rounds' ratios; shown: the median of the epochs' ratios and "
           "its distribution-free 95% confidence interval (over epochs, so that it includes what "
-          "differs from one process to the next: memory placement, code alignment).\n")
+          "differs from one process to the next, such as where its memory lies).\n")
     print("| ray set | query | epochs x rounds | " + " | ".join(f"{n} Mrays/s" for n in names) + " | "
           + " | ".join(f"{n} / {ref} [95% CI]" for n in names if n != ref) + " |")
     print("|---|---|---:|" + "---:|" * (2 * len(names) - 1))
