@@ -133,9 +133,9 @@ if [ "${LOCKSTEP_ONLY:-0}" != 1 ]; then
                         --json "$RES/part.jsonl" | tee -a "$RES/ember$tag-${threads}t.txt"
                     # Each row tagged with its round (table.py pools the rounds' passes).
                     python3 -c 'import json, sys
-    for line in open(sys.argv[1]):
-        if line.strip():
-            r = json.loads(line); r["round"] = int(sys.argv[2]); print(json.dumps(r))' \
+for line in open(sys.argv[1]):
+    if line.strip():
+        r = json.loads(line); r["round"] = int(sys.argv[2]); print(json.dumps(r))' \
                         "$RES/part.jsonl" "$round" >>"$RES/ember$tag-${threads}t.jsonl"
                 done
             done

@@ -695,15 +695,8 @@ fn run(args: &Args) -> Res<()> {
         }
     );
     for scene in &args.scenes {
-        let (positions, triangles) = load_scene(&args.data, scene)?;
-        let n_tris = triangles.len();
-        // The host's scene buffers. intersect/occluded read positions, triangles and the BVH
-        // only, so normals, materials and emitters stay empty.
-        let mut data = SceneData {
-            positions,
-            triangles,
-            ..SceneData::default()
-        };
+        let mut data = scene_data(&args.data, scene)?;
+        let n_tris = data.triangles.len();
         let mut builds = Vec::new();
         for _ in 0..3 {
             let start = Instant::now();
@@ -833,18 +826,24 @@ fn run(args: &Args) -> Res<()> {
     Ok(())
 }
 
+/// The host's scene buffers for `scene`, without a BVH yet. intersect/occluded read
+/// positions, triangles and the BVH only, so normals, materials and emitters stay empty.
+fn scene_data(data: &Path, scene: &str) -> Res<SceneData> {
+    let (positions, triangles) = load_scene(data, scene)?;
+    Ok(SceneData {
+        positions,
+        triangles,
+        ..SceneData::default()
+    })
+}
+
 /// `--serve`: one scene's BVH built once, then one timed pass per request line on stdin
 /// (`SET QUERY THREADS`), answered on stdout as `SECONDS RESULTS_HASH`; an empty line or end of
 /// input ends it. The ray sets are loaded on first use.
 fn serve(args: &Args) -> Res<()> {
     use std::io::BufRead as _;
     let scene = &args.scenes[0];
-    let (positions, triangles) = load_scene(&args.data, scene)?;
-    let mut data = SceneData {
-        positions,
-        triangles,
-        ..SceneData::default()
-    };
+    let mut data = scene_data(&args.data, scene)?;
     data.build_bvh()?;
     let view = data.view();
     let mut sets: Vec<(String, Vec<Ray>)> = Vec::new();
@@ -865,11 +864,10 @@ fn serve(args: &Args) -> Res<()> {
                 "--serve: expected `SET QUERY THREADS`, got `{line}`"
             ));
         };
-        let q = match query {
-            "INTERSECT" => Query::Intersect,
-            "OCCLUDED" => Query::Occluded,
-            _ => return Err(format!("--serve: unknown query `{query}`")),
-        };
+        let q = [Query::Intersect, Query::Occluded]
+            .into_iter()
+            .find(|q| q.name() == query)
+            .ok_or(format!("--serve: unknown query `{query}`"))?;
         let threads: usize = threads
             .parse()
             .ok()
