@@ -281,7 +281,9 @@ typedef struct EmberSettings {
   // Scattering vertices: 0 = emitters only, 1 = direct light, N bounces, -1 = unbounded
   // (Russian roulette ends the paths).
   int32_t max_depth;
-  // Bounces before Russian roulette starts (only with `max_depth == -1`).
+  // Bounces before Russian roulette starts: at unbounded depth for every integrator, and
+  // also before the last bounce of a bounded path for ember's own (MIS, the bake, light
+  // tracing, BDPT); `rr_depth >= max_depth` turns it off.
   int32_t rr_depth;
   // Survival probability of Russian roulette, in (0, 1].
   float rr_prob;

@@ -420,7 +420,9 @@ pub struct EmberSettings {
     /// Scattering vertices: 0 = emitters only, 1 = direct light, N bounces, -1 = unbounded
     /// (Russian roulette ends the paths).
     pub max_depth: i32,
-    /// Bounces before Russian roulette starts (only with `max_depth == -1`).
+    /// Bounces before Russian roulette starts: at unbounded depth for every integrator, and
+    /// also before the last bounce of a bounded path for ember's own (MIS, the bake, light
+    /// tracing, BDPT); `rr_depth >= max_depth` turns it off.
     pub rr_depth: i32,
     /// Survival probability of Russian roulette, in (0, 1].
     pub rr_prob: f32,

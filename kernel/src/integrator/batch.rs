@@ -493,7 +493,7 @@ fn bounce_offsets(
     if strategy.direct != super::DirectLighting::BsdfSampling {
         offsets |= 0b111 << dims::LIGHT_SELECT;
     }
-    if settings.roulette_applies(bounces) {
+    if settings.roulette_applies(strategy.roulette, bounces) {
         offsets |= 1 << dims::ROULETTE;
     }
     for lane in lanes_of(live) {

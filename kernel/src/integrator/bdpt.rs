@@ -20,10 +20,11 @@
 //!   its issues #385, #526). Connection cosines use shading normals, densities geometric ones.
 //! - **Depth**: `max_depth` counts scattering vertices between camera and emitter, as
 //!   TinyRender's: strategy `(s, t)` makes a path with `s + t − 2` of them. At most
-//!   [`BDPT_MAX_DEPTH`]; `−1` is unbounded with Russian roulette on both subpaths, truncated
-//!   at that cap. The roulette is throughput-adaptive, as the MIS path tracer's, on each
-//!   subpath's throughput relative to its start (a light subpath starts at `Le/p`): from
-//!   `rr_depth` vertices on, survival `min(max(β/β₀)·η_scale, rr_prob)`.
+//!   [`BDPT_MAX_DEPTH`]; `−1` is unbounded, truncated at that cap. Russian roulette is
+//!   played on both subpaths at any depth limit ([`PathSettings::roulette_applies`]),
+//!   throughput-adaptive as the MIS path tracer's, on each subpath's throughput relative to
+//!   its start (a light subpath starts at `Le/p`): from `rr_depth` vertices on, survival
+//!   `min(max(β/β₀)·η_scale, rr_prob)`.
 //! - **Roulette and MIS.** The survival probabilities are not part of the densities the MIS
 //!   weights use (the other subpath's walk would have its own); weights that sum to one over
 //!   the strategies of a path keep the estimate unbiased whatever densities they come from.

@@ -27,7 +27,7 @@ pub enum DirectLighting {
     Mis,
 }
 
-/// When a path is ended at random, once `max_depth == −1` and `rr_depth` bounces are done.
+/// How a path is ended at random once `rr_depth` bounces are done ([`PathSettings::roulette_applies`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Roulette {
     /// Survival with the fixed probability `rr_prob` (TinyRender).
@@ -268,7 +268,7 @@ impl PathState {
         if s.flags.is_transmission() {
             self.eta_scale *= s.eta * s.eta;
         }
-        let u_roulette = if settings.roulette_applies(bounces) {
+        let u_roulette = if settings.roulette_applies(strategy.roulette, bounces) {
             u.roulette(sampler)
         } else {
             0.0
