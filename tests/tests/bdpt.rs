@@ -372,6 +372,51 @@ fn white_furnace_matches_the_closed_form_with_light_tracing_and_bdpt() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// The furnace at a bounded depth with roulette inside it: light tracing and BDPT play their
+/// adaptive roulette from `rr_depth` on at any depth limit (`PathSettings::roulette_applies`),
+/// so with `max_depth` 6 and roulette from bounce 2 the image must still be the truncated
+/// series `1 + a + … + a⁶ = (1 − a⁷)/(1 − a)`, tested as the unbounded furnace above is
+/// (mean within 1% with power, every pixel t-tested with α = 0.01 shared).
+#[test]
+#[cfg_attr(debug_assertions, ignore = "slow statistical test: run with --release")]
+fn bounded_furnace_with_roulette_matches_the_truncated_series_with_light_tracing_and_bdpt() {
+    const FW: u32 = 16;
+    const FH: u32 = 16;
+    const N: i32 = 6;
+    let a = 0.8f64;
+    let expected = (1.0 - a.powi(N + 1)) / (1.0 - a);
+    let cases = [(LT, 4096u32), (BDPT, 512)];
+    let tests = cases.len() * 3 * (FW * FH + 1) as usize;
+    let alpha = sidak(ALPHA, tests);
+    let scene = LoadedScene::load(&project_data("furnace/furnace_a080_explicit.toml")).unwrap();
+    let (_, path, _) = scene.path_settings().unwrap();
+    let bounded = PathSettings {
+        max_depth: N,
+        rr_depth: 2,
+        ..path
+    };
+    let mut failures = Vec::new();
+    for (integrator, spp) in cases {
+        let label = format!("furnace a = 0.8, maxDepth {N}, rrDepth 2, {integrator:?} {spp} spp");
+        let reps = Replicates::render(
+            &scene.data.view(),
+            &scene.camera(FW, FH),
+            integrator,
+            bounded,
+            spp / K as u32,
+            K,
+            &label,
+        );
+        for r in against_value(&label, &reps, expected, 0.01, None, None) {
+            println!("    max|z| {:.2}: {}", r.z(), r.worst);
+            if r.min_p < alpha {
+                failures.push(r.worst);
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
 /// The glass furnace (`data/furnace/furnace_glass.toml`): a smooth glass sphere (Ni 1.5,
 /// flat-shaded facets) inside a closed cube whose black walls (Kd 0) emit 1. The sphere must
 /// be invisible: L = 1 in every pixel, up to the light of paths longer than an integrator's
