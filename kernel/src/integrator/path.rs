@@ -27,14 +27,16 @@ pub enum DirectLighting {
     Mis,
 }
 
-/// How a path is ended at random once `rr_depth` bounces are done ([`PathSettings::roulette_applies`]).
+/// How a path is ended at random once `rr_depth` bounces are done (where:
+/// [`PathSettings::roulette_applies`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Roulette {
-    /// Survival with the fixed probability `rr_prob` (TinyRender).
+    /// Survival with the fixed probability `rr_prob`, at unbounded depth only (TinyRender).
     Fixed,
     /// Survival with probability `min(max component of β·η_scale, rr_prob)` (pbrt-v4, Mitsuba 3),
     /// where `η_scale` undoes the radiance scaling of dielectric crossings so that paths inside
-    /// glass are not killed for being "dim" (pbrt's `etaScale`).
+    /// glass are not killed for being "dim" (pbrt's `etaScale`); at any depth limit, before a
+    /// bounded path's last bounce.
     Adaptive,
 }
 
