@@ -69,6 +69,33 @@ fn furnace_matches_closed_form() {
     }
 }
 
+/// `scene` rendered by `integrator` with the path settings `path` (not the scene's), `spp`
+/// independent samples per pixel, the default seed, on all cores.
+fn render_with_settings(
+    scene: &ember_cli::LoadedScene,
+    camera: &ember_kernel::camera::Camera,
+    integrator: Integrator,
+    path: ember_kernel::integrator::PathSettings,
+    spp: u32,
+) -> ember_cli::render::Rendered {
+    ember_cli::render::render(
+        &scene.data.view(),
+        camera,
+        &ember_cli::render::RenderSettings {
+            integrator,
+            path,
+            spp,
+            seed: ember_kernel::sampler::DEFAULT_SEED,
+            sampler: ember_kernel::sampler::SamplerKind::Independent,
+            tile: 16,
+            threads: 0,
+            progress: false,
+            shard: ember_cli::render::Shard::WHOLE,
+            strategies: None,
+        },
+    )
+}
+
 /// Roulette at a bounded depth: in the albedo-0.8 furnace with paths of at most `N = 8`
 /// scattering vertices the radiance is `1 + a + … + a^N = (1 − a^(N+1)) / (1 − a)`. MIS plays
 /// its throughput-adaptive roulette from `rr_depth` on at any depth limit (pbrt-v4, Mitsuba 3):
@@ -91,22 +118,7 @@ fn bounded_depth_roulette_keeps_the_truncated_furnace_value() {
             rr_depth,
             ..path
         };
-        ember_cli::render::render(
-            &scene.data.view(),
-            &camera,
-            &ember_cli::render::RenderSettings {
-                integrator,
-                path,
-                spp,
-                seed: ember_kernel::sampler::DEFAULT_SEED,
-                sampler: ember_kernel::sampler::SamplerKind::Independent,
-                tile: 16,
-                threads: 0,
-                progress: false,
-                shard: ember_cli::render::Shard::WHOLE,
-                strategies: None,
-            },
-        )
+        render_with_settings(&scene, &camera, integrator, path, spp)
     };
     let check = |label: &str, r: &ember_cli::render::Rendered| {
         assert_eq!(r.image.non_finite_count(), 0, "{label}");
@@ -217,24 +229,8 @@ fn glass_furnace_is_invisible_with_every_integrator() {
     let scene = ember_cli::LoadedScene::load(&toml).unwrap();
     let (_, path, _) = scene.path_settings().unwrap();
     let camera = scene.camera(32, 32);
-    let render = |integrator, path, spp| {
-        ember_cli::render::render(
-            &scene.data.view(),
-            &camera,
-            &ember_cli::render::RenderSettings {
-                integrator,
-                path,
-                spp,
-                seed: ember_kernel::sampler::DEFAULT_SEED,
-                sampler: ember_kernel::sampler::SamplerKind::Independent,
-                tile: 16,
-                threads: 0,
-                progress: false,
-                shard: ember_cli::render::Shard::WHOLE,
-                strategies: None,
-            },
-        )
-    };
+    let render =
+        |integrator, path, spp| render_with_settings(&scene, &camera, integrator, path, spp);
     for integrator in [
         Integrator::PathImplicit,
         Integrator::PathExplicit,
