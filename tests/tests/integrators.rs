@@ -45,27 +45,33 @@ fn furnace_matches_closed_form() {
             16,
             0,
         );
-        let name = format!("{name} ({integrator:?})");
-        assert_eq!(r.image.non_finite_count(), 0);
-        let mean = r.image.mean().as_dvec3();
-        let se = (r.variance.mean().as_dvec3() / f64::from(32 * 32)).map(f64::sqrt);
-        println!(
-            "{name}: mean {mean:.5} expected {expected} (standard error {:.5})",
-            se.x
+        assert_mean_within_1_percent(&format!("{name} ({integrator:?})"), &r, expected);
+    }
+}
+
+/// The image of `r` is finite and its mean is within 1% of `expected` in every channel, and
+/// its own noise (4 standard errors of the mean) fits inside that band, so the test has power.
+fn assert_mean_within_1_percent(label: &str, r: &ember_cli::render::Rendered, expected: f64) {
+    assert_eq!(r.image.non_finite_count(), 0, "{label}");
+    let mean = r.image.mean().as_dvec3();
+    let pixels = r.image.pixels.len() as f64;
+    let se = (r.variance.mean().as_dvec3() / pixels).map(f64::sqrt);
+    println!(
+        "{label}: mean {mean:.5} expected {expected:.5} (standard error {:.5}), {} rays",
+        se.x, r.rays
+    );
+    for c in 0..3 {
+        assert!(
+            4.0 * se[c] < 0.01 * expected,
+            "{label}: too noisy to test 1% ({})",
+            se[c]
         );
-        for c in 0..3 {
-            assert!(
-                4.0 * se[c] < 0.01 * expected,
-                "{name}: too noisy to test 1% ({})",
-                se[c]
-            );
-            let rel = (mean[c] - expected).abs() / expected;
-            assert!(
-                rel < 0.01,
-                "{name}: channel {c} mean {} vs {expected}",
-                mean[c]
-            );
-        }
+        let rel = (mean[c] - expected).abs() / expected;
+        assert!(
+            rel < 0.01,
+            "{label}: channel {c} mean {} vs {expected}",
+            mean[c]
+        );
     }
 }
 
@@ -120,32 +126,10 @@ fn bounded_depth_roulette_keeps_the_truncated_furnace_value() {
         };
         render_with_settings(&scene, &camera, integrator, path, spp)
     };
-    let check = |label: &str, r: &ember_cli::render::Rendered| {
-        assert_eq!(r.image.non_finite_count(), 0, "{label}");
-        let mean = r.image.mean().as_dvec3();
-        let se = (r.variance.mean().as_dvec3() / f64::from(SIZE * SIZE)).map(f64::sqrt);
-        println!(
-            "{label}: mean {mean:.5} expected {expected:.5} (standard error {:.5}), {} rays",
-            se.x, r.rays
-        );
-        for c in 0..3 {
-            assert!(
-                4.0 * se[c] < 0.01 * expected,
-                "{label}: too noisy ({})",
-                se[c]
-            );
-            let rel = (mean[c] - expected).abs() / expected;
-            assert!(
-                rel < 0.01,
-                "{label}: channel {c} mean {} vs {expected}",
-                mean[c]
-            );
-        }
-    };
     let mis_rr = render(Integrator::PathMis, 2, 64);
     let mis_off = render(Integrator::PathMis, N, 64);
-    check("MIS, roulette from bounce 2", &mis_rr);
-    check("MIS, roulette off", &mis_off);
+    assert_mean_within_1_percent("MIS, roulette from bounce 2", &mis_rr, expected);
+    assert_mean_within_1_percent("MIS, roulette off", &mis_off, expected);
     assert!(
         (mis_rr.rays as f64) < 0.7 * mis_off.rays as f64,
         "MIS traced {} rays with roulette and {} without",
