@@ -564,11 +564,11 @@ def main():
             log(f"\n== Mitsuba ladder: {name}, {args.threads} threads")
             mi, dr = set_variant(variant, args.threads)
             scene = mi.load_file(sxml)
-            sampler = scene.sensors()[0].sampler()
+            scene_sampler = scene.sensors()[0].sampler()
 
-            def effective_spp(spp, sampler=sampler):
-                sampler.set_sample_count(spp)
-                return sampler.sample_count()
+            def effective_spp(spp, scene_sampler=scene_sampler):
+                scene_sampler.set_sample_count(spp)
+                return scene_sampler.sample_count()
 
             rows += ladder(label, lambda spp, seed: mitsuba_render(mi, dr, scene, spp, seed), args.budget,
                            args.max_spp, reference_path, args.ember, build, scene_name, pixels,
