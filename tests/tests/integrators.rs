@@ -3,6 +3,7 @@
 
 mod common;
 
+use common::replicates::bits;
 use common::*;
 use ember_kernel::integrator::Integrator;
 
@@ -141,14 +142,7 @@ fn bounded_depth_roulette_keeps_the_truncated_furnace_value() {
     let explicit_rr = render(Integrator::PathExplicit, 2, 16);
     let explicit_off = render(Integrator::PathExplicit, N, 16);
     assert_eq!(explicit_rr.rays, explicit_off.rays);
-    let bits = |r: &ember_cli::render::Rendered| -> Vec<u32> {
-        r.image
-            .pixels
-            .iter()
-            .flat_map(|p| p.to_array().map(f32::to_bits))
-            .collect()
-    };
-    assert_eq!(bits(&explicit_rr), bits(&explicit_off));
+    assert_eq!(bits(&explicit_rr.image), bits(&explicit_off.image));
 }
 
 /// The image is a pure function of the scene, settings and seed: thread count and tile size
@@ -160,18 +154,11 @@ fn images_do_not_depend_on_threads_or_tiles() {
     let a = render_scene_with(&toml, 64, 48, 4, seed, 16, 1);
     let b = render_scene_with(&toml, 64, 48, 4, seed, 7, 2);
     let c = render_scene_with(&toml, 64, 48, 4, seed, 64, 2);
-    let bits = |r: &ember_cli::render::Rendered| -> Vec<u32> {
-        r.image
-            .pixels
-            .iter()
-            .flat_map(|p| p.to_array().map(f32::to_bits))
-            .collect()
-    };
-    assert_eq!(bits(&a), bits(&b));
-    assert_eq!(bits(&a), bits(&c));
+    assert_eq!(bits(&a.image), bits(&b.image));
+    assert_eq!(bits(&a.image), bits(&c.image));
     // And the seed does matter.
     let d = render_scene_with(&toml, 64, 48, 4, seed + 1, 16, 2);
-    assert_ne!(bits(&a), bits(&d));
+    assert_ne!(bits(&a.image), bits(&d.image));
 }
 
 /// Every scene this project and the TinyRender data ship renders to finite values.
