@@ -12,7 +12,8 @@
 //!   [`bsdf::SurfaceBsdf`] wrapper integrators use them through.
 //! - [`material`]: materials, turned into BSDFs at surface points; [`texture`]: image textures.
 //! - [`emitter`]: area emitters and the table they are sampled from.
-//! - [`scene`]: [`scene::SceneView`], the borrowed scene every integrator works on.
+//! - [`scene`]: [`scene::SceneView`], the borrowed scene every integrator works on; its surface
+//!   interactions of eight hits at once in SIMD lanes are in `surface_lanes`.
 //! - [`splat`]: order-independent (fixed-point) accumulation of light-tracing splats.
 //! - [`integrator`]: the path tracers (one loop, three strategies) and the GI bake.
 //! - `capi` (feature `capi`): the C API over caller-owned arrays (`kernel/include/ember.h`).
@@ -43,6 +44,7 @@ pub mod sampler;
 pub mod scene;
 pub mod simd;
 pub mod splat;
+mod surface_lanes;
 pub mod texture;
 
 pub use glam;

@@ -82,6 +82,16 @@ pub trait Lanes<const W: usize>:
     fn fast_min(self, b: Self) -> Self;
     /// True where the lane is neither infinite nor NaN.
     fn is_finite(self) -> Self;
+    /// The correctly rounded square root (as `libm::sqrtf`, `sqrtps`).
+    fn sqrt(self) -> Self;
+    /// The sign bit flipped (as the scalar `-x`, also for zeros and NaN).
+    fn neg(self) -> Self;
+    /// `a` in the lanes where `mask` (a comparison's result) holds, else `b`: bits moved, not
+    /// rounded.
+    #[inline(always)]
+    fn select(mask: Self, a: Self, b: Self) -> Self {
+        (mask & a) | (!mask & b)
+    }
 }
 
 /// An instruction set the ray queries can run with, as a value: holding one is the proof that
@@ -89,6 +99,9 @@ pub trait Lanes<const W: usize>:
 pub trait Isa: Copy {
     type Boxes: crate::bvh::BoxLanes<{ crate::bvh::WIDTH }, Isa = Self>;
     type Group: Lanes<GROUP_WIDTH, Isa = Self>;
+    /// Eight lanes on every target, for the samples a batched path tracer shades together
+    /// ([`crate::integrator::BATCH`]).
+    type Eight: Lanes<8, Isa = Self>;
 }
 
 /// The instructions every build of this target has: SSE2 on x86-64, NEON on aarch64, and so
@@ -102,6 +115,7 @@ impl Isa for Baseline {
     type Group = wide::f32x8;
     #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
     type Group = wide::f32x4;
+    type Eight = wide::f32x8;
 }
 
 /// `wide`'s lanes, as this target's build compiles them.
@@ -165,6 +179,23 @@ macro_rules! wide_lanes {
             fn is_finite(self) -> Self {
                 Self::is_finite(self)
             }
+            #[inline(always)]
+            fn sqrt(self) -> Self {
+                // `sqrtps` and NEON's `vsqrtq_f32` round correctly; elsewhere `wide` may fall
+                // back to a software root, so each lane takes the scalar code's.
+                if cfg!(any(
+                    all(target_arch = "x86_64", target_feature = "sse2"),
+                    target_arch = "aarch64"
+                )) {
+                    Self::sqrt(self)
+                } else {
+                    Self::new(Self::to_array(self).map(crate::math::sqrt))
+                }
+            }
+            #[inline(always)]
+            fn neg(self) -> Self {
+                -self
+            }
         }
     };
 }
@@ -183,8 +214,9 @@ mod avx {
     use core::arch::x86_64::{
         __m256, _mm256_add_ps, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_div_ps,
         _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps,
-        _mm256_or_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_storeu_ps, _mm256_sub_ps,
-        _mm256_xor_ps, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
+        _mm256_or_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_sqrt_ps, _mm256_storeu_ps,
+        _mm256_sub_ps, _mm256_xor_ps, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
+        _CMP_NEQ_UQ,
     };
     use core::ops::{Add, AddAssign, BitAnd, BitAndAssign, BitOr, Div, Mul, MulAssign, Not, Sub};
     use core::sync::atomic::{AtomicU8, Ordering};
@@ -199,6 +231,7 @@ mod avx {
     impl Isa for Avx {
         type Boxes = Avx8;
         type Group = Avx8;
+        type Eight = Avx8;
     }
 
     const UNKNOWN: u8 = 0;
@@ -431,6 +464,18 @@ mod avx {
             let inf = Self(unsafe { _mm256_set1_ps(f32::INFINITY) });
             self.abs().simd_lt(inf)
         }
+
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            // SAFETY: as for every `Avx8` operation.
+            Self(unsafe { _mm256_sqrt_ps(self.0) })
+        }
+
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // SAFETY: as for every `Avx8` operation.
+            Self(unsafe { _mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)) })
+        }
     }
 }
 
@@ -504,6 +549,21 @@ mod tests {
                 same("max", x.fast_max(y), Lanes::fast_max(p, q));
                 same("min", x.fast_min(y), Lanes::fast_min(p, q));
                 same("is_finite", x.is_finite(), Lanes::is_finite(p));
+                same("sqrt", x.sqrt(), Lanes::sqrt(p));
+                same("neg", x.neg(), Lanes::neg(p));
+                same(
+                    "select",
+                    Avx8::select(x.simd_lt(y), x, y),
+                    Lanes::select(Lanes::simd_lt(p, q), p, q),
+                );
+                // The lanes give the scalar code's bits.
+                let scalar = a.map(crate::math::sqrt).map(f32::to_bits);
+                assert_eq!(bits(x.sqrt().to_array()), scalar, "sqrt of {a:?}");
+                assert_eq!(
+                    bits(x.neg().to_array()),
+                    a.map(|v| (-v).to_bits()),
+                    "-{a:?}"
+                );
                 same(
                     "splat",
                     Avx8::splat(avx, a[0]),

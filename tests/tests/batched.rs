@@ -2,7 +2,8 @@
 //! loop ([`render_pixel`]): bit for bit the same pixel sums and ray counts for implicit,
 //! explicit and MIS path tracing, with both samplers, on scenes that hold every BSDF (diffuse,
 //! Phong mixtures, smooth and rough conductors and dielectrics, textures), at bounded and
-//! unbounded depths, and for sample ranges that do not fill whole batches.
+//! unbounded depths, for sample ranges that do not fill whole batches, with the rays traced
+//! one by one and as packets.
 
 mod common;
 
@@ -10,6 +11,7 @@ use common::*;
 use ember_cli::LoadedScene;
 use ember_kernel::integrator::{
     render_pixel, render_pixel_batched, Integrator, PathSettings, PixelStats, BATCH,
+    PACKET_SEGMENTS,
 };
 use ember_kernel::sampler::{SamplerKind, Sampling};
 use ember_kernel::splat::NoSplats;
@@ -39,10 +41,21 @@ fn assert_same(toml: &Path, integrator: Integrator, path: PathSettings, kind: Sa
     let mut lit = 0usize;
     for y in 0..h {
         for x in 0..w {
-            let pixel = |first: u32, count: u32, stats: PixelStats, batched: bool| {
-                if batched {
+            // `batched`: the segments traced as packets, or `None` for the one-path loop.
+            let pixel = |first: u32, count: u32, stats: PixelStats, batched: Option<u32>| {
+                if let Some(packet_segments) = batched {
                     render_pixel_batched(
-                        &strategy, &view, &camera, &path, &sampling, x, y, first, count, stats,
+                        &strategy,
+                        &view,
+                        &camera,
+                        &path,
+                        &sampling,
+                        x,
+                        y,
+                        first,
+                        count,
+                        stats,
+                        packet_segments,
                     )
                 } else {
                     render_pixel(
@@ -61,18 +74,23 @@ fn assert_same(toml: &Path, integrator: Integrator, path: PathSettings, kind: Sa
                     )
                 }
             };
-            // 3 + 13 + 16: a partial batch, batches that straddle the ranges, a whole one.
+            // 3 + 13 + 16: a partial batch, batches that straddle the ranges, a whole one;
+            // rays traced one by one (the shipped choice) and as packets for the camera and
+            // the first two bounces.
             let mut scalar = PixelStats::default();
-            let mut batched = PixelStats::default();
+            let mut batched = [PixelStats::default(); 2];
             for (first, count) in [(0, 3), (3, 13), (16, 16)] {
-                scalar = pixel(first, count, scalar, false);
-                batched = pixel(first, count, batched, true);
-                assert_eq!(
-                    stats_bits(&scalar),
-                    stats_bits(&batched),
-                    "{what}: pixel ({x}, {y}) after samples {first}..{}",
-                    first + count
-                );
+                scalar = pixel(first, count, scalar, None);
+                for (b, packets) in batched.iter_mut().zip([PACKET_SEGMENTS, 3]) {
+                    *b = pixel(first, count, *b, Some(packets));
+                    assert_eq!(
+                        stats_bits(&scalar),
+                        stats_bits(b),
+                        "{what}: pixel ({x}, {y}) after samples {first}..{}, {packets} packet \
+                         segments",
+                        first + count
+                    );
+                }
             }
             rays += scalar.rays;
             lit += usize::from(scalar.sum.max_element() > 0.0);

@@ -7,18 +7,33 @@
 //! every lane draws the same dimensions, so their numbers are drawn together
 //! ([`PixelSamples::draw_lanes`]; for Sobol' samples the key and the pixel's digits once, the
 //! digit permutations once per run of lanes that share them, the scramble in SIMD lanes), and
-//! the rays of a bounce are traced together: the camera rays always, the shadow and
-//! continuation rays up to bounce [`PACKET_BOUNCES`], as packets through the wide tree
-//! ([`SceneView::intersect_packet`], [`SceneView::occluded_packet`]), one ray per lane.
+//! the surface interactions of the rays that land are computed together, in SIMD lanes
+//! ([`SceneView::interactions`]). The rays are traced one by one: packets through the wide
+//! tree ([`SceneView::intersect_packet`], [`SceneView::occluded_packet`]) are available for
+//! the first segments of the paths ([`PACKET_SEGMENTS`]) but did not pay.
 //!
-//! Status: not used by the hosts, because it does not pay yet. On the project's Cornell box
-//! (MIS, 64 × 64, 16 spp, one thread, x86-64-v3 build on an AMD EPYC) it executes 0.8% more
-//! instructions than the one-path loop (1,374.1 M against 1,362.6 M; with packets for no
-//! bounce beyond the camera 1,393.5 M, to bounce 2 1,378.2 M, for every bounce 1,544.1 M:
-//! packets pay only while a pixel's rays are coherent), and its wall time is 5 to 10% longer
-//! (256 × 192, 32 spp: 2.9 to 3.1 s against 2.7 to 2.9 s; TinyRender's 32k-triangle box 5.4
-//! to 5.7 s against 4.9 to 5.2 s). The lanes still shade one after another; the stages to
-//! vectorise next are the surface interaction, emitter sampling and the BSDFs.
+//! Status: not used by the hosts, because it does not pay yet. Measured on an AMD EPYC (Zen 5;
+//! sse4_2 avx avx2 fma avx512f/dq/bw/vl), 2026-12-07, `cargo bench -p ember-tests --bench
+//! batch` (64 × 64, 16 spp, MIS, Sobol', one thread, shipped x86-64 build with the AVX
+//! dispatch), batched film time over the one-path loop's, alternating runs:
+//! - before this change (packets for the camera rays and the first bounce's rays, the
+//!   interactions one lane at a time, one run): 1.21 on the project's Cornell box and 1.21 on
+//!   TinyRender's `cbox.obj`;
+//! - packets ([`PACKET_SEGMENTS`]), in one sitting, with the interactions in lanes: for the
+//!   camera and first-bounce rays 1.25–1.28 and 1.28, for the camera rays 1.21–1.24 and
+//!   1.15–1.21, none 1.13–1.16 and 1.12–1.14;
+//! - the interactions in lanes against one lane at a time, without packets, 3 alternating
+//!   runs: 78.3–80.9 ms against 80.3–83.0 ms, and 90.6–92.1 against 90.9–94.3 (2% saved);
+//! - the queries' rays and the lanes' inputs gathered in place instead of by array `map`
+//!   (whose copies were 8% of the batched profile): 1.10–1.14 and 1.07.
+//!
+//! The interaction stage costs as much in lanes as one lane at a time (33 against 36 ns per
+//! interaction): its arithmetic is an eighth, but its inputs are gathered from eight hits and
+//! its outputs written back to eight `SurfaceInteraction`s that the scalar stages read. Each
+//! stage vectorised on its own pays only that way; what pays is path state that stays in
+//! lanes from one stage to the next (structure of arrays: throughput, radiance, the point, its
+//! frame), so that the stages exchange registers, not structs. The stages to move next are
+//! emitter sampling and the diffuse BSDF, the whole bounce of a diffuse scene.
 
 use super::path::{NextRay, PathState, ShadowQuery};
 use super::{dims, PathSettings, PathStrategy, PixelStats, SampleResult};
@@ -248,7 +263,8 @@ fn draw_bounce<P: PixelSamples>(
 
 /// Renders samples `first .. first + count` of pixel `(x, y)` with the path tracer `strategy`,
 /// [`BATCH`] at a time, and adds them in sample order to `stats`: the sums
-/// [`super::render_pixel`] gives, bit for bit.
+/// [`super::render_pixel`] gives, bit for bit. The first `packet_segments` segments of the
+/// paths are traced as packets ([`PACKET_SEGMENTS`] is the measured choice).
 #[allow(clippy::too_many_arguments)]
 #[must_use]
 pub fn render_pixel_batched(
@@ -262,19 +278,40 @@ pub fn render_pixel_batched(
     first: u32,
     count: u32,
     stats: PixelStats,
+    packet_segments: u32,
 ) -> PixelStats {
     match sampling.kind {
         SamplerKind::Independent => {
             let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
             let mut p = IndependentPixel::new(sampling.seed, pixel);
             batches(
-                strategy, scene, camera, settings, &mut p, x, y, first, count, stats,
+                strategy,
+                scene,
+                camera,
+                settings,
+                &mut p,
+                x,
+                y,
+                first,
+                count,
+                stats,
+                packet_segments,
             )
         }
         SamplerKind::ZSobol => {
             let mut p = sampling.zsobol().pixel_sampler(x, y);
             batches(
-                strategy, scene, camera, settings, &mut p, x, y, first, count, stats,
+                strategy,
+                scene,
+                camera,
+                settings,
+                &mut p,
+                x,
+                y,
+                first,
+                count,
+                stats,
+                packet_segments,
             )
         }
     }
@@ -293,12 +330,24 @@ fn batches<P: PixelSamples>(
     first: u32,
     count: u32,
     mut stats: PixelStats,
+    packet_segments: u32,
 ) -> PixelStats {
     let end = first.saturating_add(count);
     let mut start = first;
     while start < end {
         let n = (end - start).min(BATCH as u32) as usize;
-        let results = batch(strategy, scene, camera, settings, pixel, x, y, start, n);
+        let results = batch(
+            strategy,
+            scene,
+            camera,
+            settings,
+            pixel,
+            x,
+            y,
+            start,
+            n,
+            packet_segments,
+        );
         for r in &results[..n] {
             stats.add(r.l);
             stats.rays += u64::from(r.rays);
@@ -321,6 +370,7 @@ fn batch<P: PixelSamples>(
     y: u32,
     start: u32,
     n: usize,
+    packet_segments: u32,
 ) -> [SampleResult; BATCH] {
     let indices: [u32; BATCH] = core::array::from_fn(|l| start.wrapping_add(l as u32));
     let mut results = [SampleResult::default(); BATCH];
@@ -335,14 +385,22 @@ fn batch<P: PixelSamples>(
         camera_rays[lane] = camera.generate_ray(x, y, dims::camera(pixel));
         results[lane].rays += 1;
     }
-    // A pixel's camera rays are nearly one ray: traced as a packet.
-    let hits = scene.intersect_packet(&camera_rays, used);
+    // A pixel's camera rays are nearly one ray: a packet can walk the tree once for them.
+    let hits = if packet_segments > 0 {
+        scene.intersect_packet(&camera_rays, used)
+    } else {
+        core::array::from_fn(|l| {
+            (used >> l & 1 != 0)
+                .then(|| scene.intersect(&camera_rays[l]))
+                .flatten()
+        })
+    };
     let mut live = 0u32;
+    let arrived = scene.interactions(&camera_rays, &hits, used);
     for lane in 0..n {
-        let Some(hit) = hits[lane] else {
+        let Some(si) = arrived[lane] else {
             continue;
         };
-        let si = scene.interaction(&camera_rays[lane], &hit);
         let bsdf = scene.bsdf_at(&si);
         seen[lane] = scene.emitted(&si);
         paths[lane] = Some(PathState::new(si, bsdf));
@@ -385,7 +443,8 @@ fn batch<P: PixelSamples>(
                 }
             }
         }
-        let occluded = trace_shadows(scene, &shadows, shadow_lanes, bounces);
+        let packet = bounces < packet_segments;
+        let occluded = trace_shadows(scene, &shadows, shadow_lanes, packet);
         for lane in lanes_of(shadow_lanes) {
             if let (Some(path), Some(shadow)) = (paths[lane].as_mut(), shadows[lane].as_ref()) {
                 path.add_light(shadow, occluded >> lane & 1 == 0);
@@ -408,12 +467,18 @@ fn batch<P: PixelSamples>(
                 live &= !(1 << lane);
             }
         }
-        let hits = trace_next(scene, settings, &nexts, live, bounces);
+        let hits = trace_next(scene, settings, &nexts, live, packet);
+        let rays = rays_of(&nexts, |n| n.ray);
+        let arrived = scene.interactions(&rays, &hits, live);
         for lane in lanes_of(live) {
-            let (Some(path), Some(next)) = (paths[lane].as_mut(), nexts[lane].as_ref()) else {
+            let (Some(path), Some(next), Some(si)) =
+                (paths[lane].as_mut(), nexts[lane].as_ref(), arrived[lane])
+            else {
+                // The ray left the scene.
+                live &= !(1 << lane);
                 continue;
             };
-            if !path.arrive(scene, strategy, next, hits[lane]) {
+            if !path.arrive_at(scene, strategy, next, si) {
                 live &= !(1 << lane);
             }
         }
@@ -425,20 +490,38 @@ fn batch<P: PixelSamples>(
     results
 }
 
-/// Bounces up to which a batch traces its rays as packets: a pixel's paths start close
-/// together and spread out as they bounce.
-pub const PACKET_BOUNCES: u32 = 1;
+/// The segments of its paths a batch traces as packets ([`SceneView::intersect_packet`],
+/// [`SceneView::occluded_packet`]), from the camera's (segment 0; segment `k` leaves bounce
+/// `k`): a pixel's paths start close together and spread out as they bounce. None, because
+/// packets did not pay on the AMD EPYC (Zen 5) of 2026-12-07 (`cargo bench -p ember-tests
+/// --bench batch`, MIS, one thread, 3 alternating runs): the batched film took 1.21–1.24 times
+/// the one-path loop's time with packets for the camera rays, 1.25–1.28 with the first
+/// bounce's rays too, 1.13–1.16 without (`cbox.obj`: 1.15–1.21, 1.28, 1.12–1.14). Packets
+/// test one triangle against eight rays in `wide`'s lanes, compiled for the baseline (SSE2 on
+/// x86-64), where a single ray tests eight triangles with AVX.
+pub const PACKET_SEGMENTS: u32 = 0;
 
-/// Whether the shadow rays of `lanes` are occluded (bits).
+/// The ray of each lane's query (a placeholder where there is none), built in place: an array
+/// `map` over the queries copied them, 3% of a batched render.
+#[inline(always)]
+fn rays_of<T>(queries: &[Option<T>; BATCH], ray: impl Fn(&T) -> Ray) -> [Ray; BATCH] {
+    core::array::from_fn(|l| {
+        queries[l]
+            .as_ref()
+            .map_or(Ray::new(Vec3::ZERO, Vec3::Z), &ray)
+    })
+}
+
+/// Whether the shadow rays of `lanes` are occluded (bits), traced as a packet if `packet`.
 #[inline(always)]
 fn trace_shadows(
     scene: &SceneView<'_>,
     shadows: &[Option<ShadowQuery>; BATCH],
     lanes: u32,
-    bounces: u32,
+    packet: bool,
 ) -> u32 {
-    if bounces <= PACKET_BOUNCES && lanes.count_ones() > 1 {
-        let rays = shadows.map(|s| s.map_or(Ray::new(Vec3::ZERO, Vec3::Z), |s| s.ray));
+    if packet && lanes.count_ones() > 1 {
+        let rays = rays_of(shadows, |s| s.ray);
         return scene.occluded_packet(&rays, lanes);
     }
     lanes_of(lanes).fold(0, |m, lane| {
@@ -447,29 +530,29 @@ fn trace_shadows(
     })
 }
 
-/// Where the rays of `lanes` land ([`NextRay::trace`]).
+/// Where the rays of `lanes` land ([`NextRay::trace`]), traced as a packet if `packet`.
 #[inline(always)]
 fn trace_next(
     scene: &SceneView<'_>,
     settings: &PathSettings,
     nexts: &[Option<NextRay>; BATCH],
     lanes: u32,
-    bounces: u32,
+    packet: bool,
 ) -> [Option<Hit>; BATCH] {
     let mut hits = [None; BATCH];
     let mut rest = lanes;
-    if bounces <= PACKET_BOUNCES {
+    if packet {
         // Terminal rays take their own shortcut; the others go as a packet.
-        let mut packet = 0u32;
+        let mut packed = 0u32;
         for lane in lanes_of(lanes) {
             if nexts[lane].is_some_and(|n| !n.terminal) {
-                packet |= 1 << lane;
+                packed |= 1 << lane;
             }
         }
-        if packet.count_ones() > 1 {
-            let rays = nexts.map(|n| n.map_or(Ray::new(Vec3::ZERO, Vec3::Z), |n| n.ray));
-            hits = scene.intersect_packet(&rays, packet);
-            rest &= !packet;
+        if packed.count_ones() > 1 {
+            let rays = rays_of(nexts, |n| n.ray);
+            hits = scene.intersect_packet(&rays, packed);
+            rest &= !packed;
         }
     }
     for lane in lanes_of(rest) {

@@ -30,7 +30,7 @@ mod light_tracer;
 mod path;
 
 pub use bake::{bake_vertex, BakeEstimator, BakePoint, BakeSamples};
-pub use batch::{render_pixel_batched, IndependentPixel, PixelSamples, BATCH};
+pub use batch::{render_pixel_batched, IndependentPixel, PixelSamples, BATCH, PACKET_SEGMENTS};
 pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};
 pub use light_tracer::{light_trace, ray_to_camera};

@@ -311,8 +311,21 @@ impl PathState {
         let Some(hit) = hit else {
             return false;
         };
+        self.arrive_at(scene, strategy, next, scene.interaction(&next.ray, &hit))
+    }
+
+    /// [`Self::arrive`] given the interaction `si` where `next` landed (for a driver that
+    /// computes the interactions of many paths together).
+    #[inline(always)]
+    pub fn arrive_at(
+        &mut self,
+        scene: &SceneView<'_>,
+        strategy: &PathStrategy,
+        next: &NextRay,
+        si: SurfaceInteraction,
+    ) -> bool {
         let prev_p = self.si.p;
-        self.si = scene.interaction(&next.ray, &hit);
+        self.si = si;
         let si = &self.si;
         if next.counts_emission {
             let le = scene.emitted(si);
