@@ -313,9 +313,27 @@ impl ZSobolLayout {
     /// `log2 spp` is odd.
     #[inline]
     fn lowest_sample_part(&self, morton_index: u64, key: u64) -> u64 {
+        let permutation = self.lowest_permutation(morton_index, key);
+        self.lowest_sample_part_with(morton_index, key, permutation)
+    }
+
+    /// The permutation of the lowest sample digit: a function of [`Self::upper_tag`] and the
+    /// key, like the digits above it (so [`ZSobolPixelSampler`] keeps it with them).
+    #[inline]
+    fn lowest_permutation(&self, morton_index: u64, key: u64) -> usize {
+        permutation_of(self.upper_tag(morton_index), key)
+    }
+
+    /// [`Self::lowest_sample_part`] given [`Self::lowest_permutation`] (one digit of
+    /// [`Self::permuted_digits`]).
+    #[inline]
+    fn lowest_sample_part_with(&self, morton_index: u64, key: u64, permutation: usize) -> u64 {
         let odd = self.log2_spp & 1;
-        let to = self.sample_base4_digits();
-        let mut index = self.permuted_digits(morton_index, key, odd, to.min(odd + 1));
+        let mut index = 0u64;
+        if self.sample_base4_digits() > odd {
+            let digit = (morton_index >> odd) & 3;
+            index = u64::from(PERMUTATIONS[permutation][digit as usize]) << odd;
+        }
         if odd == 1 {
             let flip = permutation_hash(morton_index >> 1, key) >> 63;
             index |= (morton_index & 1) ^ flip;
@@ -354,6 +372,7 @@ impl ZSobolLayout {
             pixel_parts: [0; MEMO_SLOTS],
             upper_tags: [u64::MAX; MEMO_SLOTS],
             upper_parts: [0; MEMO_SLOTS],
+            lowest_permutations: [0; MEMO_SLOTS],
         }
     }
 }
@@ -449,6 +468,9 @@ pub struct ZSobolPixelSampler {
     /// permutation instead of all `log4 spp`.
     upper_tags: [u64; MEMO_SLOTS],
     upper_parts: [u64; MEMO_SLOTS],
+    /// The slot's [`ZSobolLayout::lowest_permutation`] for the same tag: three of four
+    /// consecutive samples share it, and its hash is the longest chain of a draw.
+    lowest_permutations: [u8; MEMO_SLOTS],
 }
 
 impl ZSobolPixelSampler {
@@ -483,9 +505,15 @@ impl ZSobolPixelSampler {
         if self.upper_tags[slot] != tag {
             self.upper_tags[slot] = tag;
             self.upper_parts[slot] = layout.upper_sample_part(self.morton_index, key);
+            self.lowest_permutations[slot] =
+                layout.lowest_permutation(self.morton_index, key) as u8;
         }
-        let sample_part =
-            self.upper_parts[slot] | layout.lowest_sample_part(self.morton_index, key);
+        let lowest = layout.lowest_sample_part_with(
+            self.morton_index,
+            key,
+            usize::from(self.lowest_permutations[slot]),
+        );
+        let sample_part = self.upper_parts[slot] | lowest;
         draw(pixel_part | sample_part, key)
     }
 
