@@ -280,214 +280,198 @@ pub fn render_pixel_batched(
     stats: PixelStats,
     packet_segments: u32,
 ) -> PixelStats {
+    let job = Job {
+        strategy,
+        scene,
+        camera,
+        settings,
+        x,
+        y,
+        packet_segments,
+    };
     match sampling.kind {
         SamplerKind::Independent => {
             let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
-            let mut p = IndependentPixel::new(sampling.seed, pixel);
-            batches(
-                strategy,
-                scene,
-                camera,
-                settings,
-                &mut p,
-                x,
-                y,
+            job.samples(
+                &mut IndependentPixel::new(sampling.seed, pixel),
                 first,
                 count,
                 stats,
-                packet_segments,
             )
         }
-        SamplerKind::ZSobol => {
-            let mut p = sampling.zsobol().pixel_sampler(x, y);
-            batches(
-                strategy,
-                scene,
-                camera,
-                settings,
-                &mut p,
-                x,
-                y,
-                first,
-                count,
-                stats,
-                packet_segments,
-            )
-        }
+        SamplerKind::ZSobol => job.samples(
+            &mut sampling.zsobol().pixel_sampler(x, y),
+            first,
+            count,
+            stats,
+        ),
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn batches<P: PixelSamples>(
-    strategy: &PathStrategy,
-    scene: &SceneView<'_>,
-    camera: &Camera,
-    settings: &PathSettings,
-    pixel: &mut P,
+/// What every batch of a pixel shares: the path tracer, the scene, the pixel, the packets.
+struct Job<'a, 'b> {
+    strategy: &'a PathStrategy,
+    scene: &'a SceneView<'b>,
+    camera: &'a Camera,
+    settings: &'a PathSettings,
     x: u32,
     y: u32,
-    first: u32,
-    count: u32,
-    mut stats: PixelStats,
     packet_segments: u32,
-) -> PixelStats {
-    let end = first.saturating_add(count);
-    let mut start = first;
-    while start < end {
-        let n = (end - start).min(BATCH as u32) as usize;
-        let results = batch(
+}
+
+impl Job<'_, '_> {
+    /// Samples `first .. first + count`, [`BATCH`] at a time, added in sample order to `stats`.
+    #[inline(always)]
+    fn samples<P: PixelSamples>(
+        &self,
+        pixel: &mut P,
+        first: u32,
+        count: u32,
+        mut stats: PixelStats,
+    ) -> PixelStats {
+        let end = first.saturating_add(count);
+        let mut start = first;
+        while start < end {
+            let n = (end - start).min(BATCH as u32) as usize;
+            let results = self.batch(pixel, start, n);
+            for r in &results[..n] {
+                stats.add(r.l);
+                stats.rays += u64::from(r.rays);
+            }
+            start += n as u32;
+        }
+        stats
+    }
+
+    /// Samples `start .. start + n` (`n ≤ BATCH`) of the pixel, one lane each.
+    #[inline(always)]
+    fn batch<P: PixelSamples>(&self, pixel: &mut P, start: u32, n: usize) -> [SampleResult; BATCH] {
+        let Self {
             strategy,
             scene,
             camera,
             settings,
-            pixel,
             x,
             y,
-            start,
-            n,
             packet_segments,
-        );
-        for r in &results[..n] {
-            stats.add(r.l);
-            stats.rays += u64::from(r.rays);
+        } = *self;
+        let indices: [u32; BATCH] = core::array::from_fn(|l| start.wrapping_add(l as u32));
+        let mut results = [SampleResult::default(); BATCH];
+        // Emission seen from the camera, added to each path's radiance at the end as `li_path` adds
+        // it.
+        let mut seen = [Rgb::ZERO; BATCH];
+        let mut paths: [Option<PathState>; BATCH] = [None; BATCH];
+        let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+        let used = (1u32 << n) - 1;
+        for lane in 0..n {
+            pixel.start_sample(indices[lane], 0);
+            camera_rays[lane] = camera.generate_ray(x, y, dims::camera(pixel));
+            results[lane].rays += 1;
         }
-        start += n as u32;
-    }
-    stats
-}
-
-/// Samples `start .. start + n` (`n ≤ BATCH`) of the pixel, one lane each.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn batch<P: PixelSamples>(
-    strategy: &PathStrategy,
-    scene: &SceneView<'_>,
-    camera: &Camera,
-    settings: &PathSettings,
-    pixel: &mut P,
-    x: u32,
-    y: u32,
-    start: u32,
-    n: usize,
-    packet_segments: u32,
-) -> [SampleResult; BATCH] {
-    let indices: [u32; BATCH] = core::array::from_fn(|l| start.wrapping_add(l as u32));
-    let mut results = [SampleResult::default(); BATCH];
-    // Emission seen from the camera, added to each path's radiance at the end as `li_path` adds
-    // it.
-    let mut seen = [Rgb::ZERO; BATCH];
-    let mut paths: [Option<PathState>; BATCH] = [None; BATCH];
-    let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
-    let used = (1u32 << n) - 1;
-    for lane in 0..n {
-        pixel.start_sample(indices[lane], 0);
-        camera_rays[lane] = camera.generate_ray(x, y, dims::camera(pixel));
-        results[lane].rays += 1;
-    }
-    // A pixel's camera rays are nearly one ray: a packet can walk the tree once for them.
-    let hits = if packet_segments > 0 {
-        scene.intersect_packet(&camera_rays, used)
-    } else {
-        core::array::from_fn(|l| {
-            (used >> l & 1 != 0)
-                .then(|| scene.intersect(&camera_rays[l]))
-                .flatten()
-        })
-    };
-    let mut live = 0u32;
-    let arrived = scene.interactions(&camera_rays, &hits, used);
-    for lane in 0..n {
-        let Some(si) = arrived[lane] else {
-            continue;
+        // A pixel's camera rays are nearly one ray: a packet can walk the tree once for them.
+        let hits = if packet_segments > 0 {
+            scene.intersect_packet(&camera_rays, used)
+        } else {
+            core::array::from_fn(|l| {
+                (used >> l & 1 != 0)
+                    .then(|| scene.intersect(&camera_rays[l]))
+                    .flatten()
+            })
         };
-        let bsdf = scene.bsdf_at(&si);
-        seen[lane] = scene.emitted(&si);
-        paths[lane] = Some(PathState::new(si, bsdf));
-        live |= 1 << lane;
-    }
-    let mut numbers = BounceNumbers {
-        base: 0,
-        drawn: 0,
-        values: [[0.0; BATCH]; dims::PER_BOUNCE as usize],
-    };
-    let mut base = dims::CAMERA;
-    let mut bounces = 0u32;
-    let mut us = [None; BATCH];
-    let mut shadows = [None; BATCH];
-    let mut nexts = [None; BATCH];
-    while live != 0 {
-        bounces += 1;
-        let offsets = bounce_offsets(strategy, settings, bounces, &paths, live);
-        draw_bounce(pixel, &indices, live, base, offsets, &mut numbers);
-        // Each lane's next-event estimate, then all their shadow rays.
-        let mut shadow_lanes = 0u32;
-        for lane in lanes_of(live) {
-            let Some(path) = paths[lane].as_mut() else {
+        let mut live = 0u32;
+        let arrived = scene.interactions(&camera_rays, &hits, used);
+        for lane in 0..n {
+            let Some(si) = arrived[lane] else {
                 continue;
             };
-            match path.light(
-                scene,
-                settings,
-                strategy,
-                &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
-            ) {
-                None => live &= !(1 << lane),
-                Some((u, shadow)) => {
-                    us[lane] = Some(u);
-                    shadows[lane] = shadow;
-                    if shadow.is_some() {
-                        shadow_lanes |= 1 << lane;
-                        results[lane].rays += 1;
+            let bsdf = scene.bsdf_at(&si);
+            seen[lane] = scene.emitted(&si);
+            paths[lane] = Some(PathState::new(si, bsdf));
+            live |= 1 << lane;
+        }
+        let mut numbers = BounceNumbers {
+            base: 0,
+            drawn: 0,
+            values: [[0.0; BATCH]; dims::PER_BOUNCE as usize],
+        };
+        let mut base = dims::CAMERA;
+        let mut bounces = 0u32;
+        let mut us = [None; BATCH];
+        let mut shadows = [None; BATCH];
+        let mut nexts = [None; BATCH];
+        while live != 0 {
+            bounces += 1;
+            let offsets = bounce_offsets(strategy, settings, bounces, &paths, live);
+            draw_bounce(pixel, &indices, live, base, offsets, &mut numbers);
+            // Each lane's next-event estimate, then all their shadow rays.
+            let mut shadow_lanes = 0u32;
+            for lane in lanes_of(live) {
+                let Some(path) = paths[lane].as_mut() else {
+                    continue;
+                };
+                match path.light(
+                    scene,
+                    settings,
+                    strategy,
+                    &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
+                ) {
+                    None => live &= !(1 << lane),
+                    Some((u, shadow)) => {
+                        us[lane] = Some(u);
+                        shadows[lane] = shadow;
+                        if shadow.is_some() {
+                            shadow_lanes |= 1 << lane;
+                            results[lane].rays += 1;
+                        }
                     }
                 }
             }
-        }
-        let packet = bounces < packet_segments;
-        let occluded = trace_shadows(scene, &shadows, shadow_lanes, packet);
-        for lane in lanes_of(shadow_lanes) {
-            if let (Some(path), Some(shadow)) = (paths[lane].as_mut(), shadows[lane].as_ref()) {
-                path.add_light(shadow, occluded >> lane & 1 == 0);
+            let packet = bounces < packet_segments;
+            let occluded = trace_shadows(scene, &shadows, shadow_lanes, packet);
+            for lane in lanes_of(shadow_lanes) {
+                if let (Some(path), Some(shadow)) = (paths[lane].as_mut(), shadows[lane].as_ref()) {
+                    path.add_light(shadow, occluded >> lane & 1 == 0);
+                }
             }
-        }
-        // Each lane's scattered ray, then all of them.
-        for lane in lanes_of(live) {
-            let (Some(path), Some(u)) = (paths[lane].as_mut(), us[lane]) else {
-                continue;
-            };
-            nexts[lane] = path.scatter(
-                settings,
-                strategy,
-                &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
-                u,
-            );
-            if nexts[lane].is_some() {
-                results[lane].rays += 1;
-            } else {
-                live &= !(1 << lane);
+            // Each lane's scattered ray, then all of them.
+            for lane in lanes_of(live) {
+                let (Some(path), Some(u)) = (paths[lane].as_mut(), us[lane]) else {
+                    continue;
+                };
+                nexts[lane] = path.scatter(
+                    settings,
+                    strategy,
+                    &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
+                    u,
+                );
+                if nexts[lane].is_some() {
+                    results[lane].rays += 1;
+                } else {
+                    live &= !(1 << lane);
+                }
             }
-        }
-        let hits = trace_next(scene, settings, &nexts, live, packet);
-        let rays = rays_of(&nexts, |n| n.ray);
-        let arrived = scene.interactions(&rays, &hits, live);
-        for lane in lanes_of(live) {
-            let (Some(path), Some(next), Some(si)) =
-                (paths[lane].as_mut(), nexts[lane].as_ref(), arrived[lane])
-            else {
-                // The ray left the scene.
-                live &= !(1 << lane);
-                continue;
-            };
-            if !path.arrive_at(scene, strategy, next, si) {
-                live &= !(1 << lane);
+            let hits = trace_next(scene, settings, &nexts, live, packet);
+            let rays = rays_of(&nexts, |n| n.ray);
+            let arrived = scene.interactions(&rays, &hits, live);
+            for lane in lanes_of(live) {
+                let (Some(path), Some(next), Some(si)) =
+                    (paths[lane].as_mut(), nexts[lane].as_ref(), arrived[lane])
+                else {
+                    // The ray left the scene.
+                    live &= !(1 << lane);
+                    continue;
+                };
+                if !path.arrive_at(scene, strategy, next, si) {
+                    live &= !(1 << lane);
+                }
             }
+            base = base.wrapping_add(dims::PER_BOUNCE);
         }
-        base = base.wrapping_add(dims::PER_BOUNCE);
+        for lane in 0..n {
+            results[lane].l = paths[lane].as_ref().map_or(Rgb::ZERO, |p| seen[lane] + p.l);
+        }
+        results
     }
-    for lane in 0..n {
-        results[lane].l = paths[lane].as_ref().map_or(Rgb::ZERO, |p| seen[lane] + p.l);
-    }
-    results
 }
 
 /// The segments of its paths a batch traces as packets ([`SceneView::intersect_packet`],
