@@ -6,7 +6,8 @@
 //! - [`sampler`]: the deterministic sampler keyed by (seed, pixel, sample index, dimension).
 //! - [`geometry`]: rays, watertight triangle intersection, robust ray origins.
 //! - [`bvh`]: binned-SAH BVH built into caller slices, fixed-stack traversal.
-//! - [`simd`]: the SIMD lanes of the ray queries, and their run-time choice of AVX2 on x86-64.
+//! - [`simd`]: the SIMD lanes of the ray queries and of the batched shading, and their run-time
+//!   choice of AVX2 on x86-64.
 //! - [`camera`]: the TinyRender pinhole camera.
 //! - [`bsdf`]: the closed set of BSDFs (enum dispatch, local shading frame) and the
 //!   [`bsdf::SurfaceBsdf`] wrapper integrators use them through.

@@ -1,7 +1,8 @@
 //! The instruction sets the ray queries run with, chosen at run time: the kernel's lane code
-//! (the wide BVH's slab test and the triangle groups' watertight test) written once over
-//! [`Lanes`] and compiled twice on x86-64, for the build's baseline and for AVX2
-//! (the x86-64-v3 level).
+//! (the wide BVH's slab test, the triangle groups' watertight test, and the surface
+//! interactions of a batched path tracer's eight samples, `crate::surface_lanes`) written once
+//! over [`Lanes`] and compiled twice on x86-64, for the build's baseline and for AVX2 (the
+//! x86-64-v3 level).
 //!
 //! Why: a build for the x86-64 baseline (the shipped binary, `cargo build --release`) knows
 //! only SSE2, where eight lanes are two registers; a build for `x86-64-v3` or `native` runs
