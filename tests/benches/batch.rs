@@ -38,6 +38,8 @@ fn scenes() -> Vec<(&'static str, PathBuf)> {
 }
 
 fn main() {
+    // Every figure carries the CPU it was measured on.
+    eprintln!("CPU: {}", ember_cli::simd::cpu_summary());
     let mut c = Criterion::default()
         .configure_from_args()
         .sample_size(10)

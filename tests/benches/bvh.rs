@@ -558,6 +558,8 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let benchmarking =
         args.iter().any(|a| a == "--bench") && !args.iter().any(|a| a == "--test" || a == "--list");
+    // Every figure carries the CPU it was measured on.
+    eprintln!("CPU: {}", ember_cli::simd::cpu_summary());
     let mut c = Criterion::default().configure_from_args();
     bench_build(&mut c);
     bench_rays(&mut c);
