@@ -46,7 +46,10 @@ pub mod scene;
 pub mod simd;
 pub mod splat;
 mod surface_lanes;
+pub use surface_lanes::SurfaceLanes;
 pub mod texture;
+mod vec_lanes;
+pub use vec_lanes::Soa3;
 
 pub use glam;
 pub use glam::{Vec2, Vec3};

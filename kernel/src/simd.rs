@@ -93,6 +93,23 @@ pub trait Lanes<const W: usize>:
     fn select(mask: Self, a: Self, b: Self) -> Self {
         (mask & a) | (!mask & b)
     }
+    /// `self` moved one ulp the way `o` points: [`crate::math::next_float_up`] where `o > 0`,
+    /// [`crate::math::next_float_down`] where `o < 0`, `self` elsewhere (how a ray origin is
+    /// rounded away from its surface); lane by lane in the scalar functions unless the lanes
+    /// have integer steps.
+    #[inline(always)]
+    fn round_away(self, isa: Self::Isa, o: Self) -> Self {
+        let (v, o) = (self.to_array(), o.to_array());
+        let mut r = v;
+        for l in 0..W {
+            if o[l] > 0.0 {
+                r[l] = crate::math::next_float_up(v[l]);
+            } else if o[l] < 0.0 {
+                r[l] = crate::math::next_float_down(v[l]);
+            }
+        }
+        Self::new(isa, r)
+    }
 }
 
 /// An instruction set the ray queries can run with, as a value: holding one is the proof that
@@ -213,9 +230,10 @@ pub use avx::{limit_to_baseline, Avx, Avx8};
 mod avx {
     use super::{Isa, Lanes};
     use core::arch::x86_64::{
-        __m256, _mm256_add_ps, _mm256_and_ps, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_div_ps,
-        _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps,
-        _mm256_or_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_sqrt_ps, _mm256_storeu_ps,
+        __m256, _mm256_add_epi32, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256,
+        _mm256_castps_si256, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_div_ps, _mm256_loadu_ps,
+        _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps,
+        _mm256_set1_epi32, _mm256_set1_ps, _mm256_sqrt_ps, _mm256_storeu_ps, _mm256_sub_epi32,
         _mm256_sub_ps, _mm256_xor_ps, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
         _CMP_NEQ_UQ,
     };
@@ -477,6 +495,43 @@ mod avx {
             // SAFETY: as for every `Avx8` operation.
             Self(unsafe { _mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)) })
         }
+
+        /// The scalar steps as integer steps of the bits: up, `-0` becomes `+0` (`v + 0`)
+        /// and the bits go one up from a non-negative value, one down from a negative one;
+        /// down, `+0` becomes `-0` (`-(-v + 0)`) and the bits go one down from a positive
+        /// value, one up from a non-positive one; NaN and the infinity in the direction of the
+        /// step stay.
+        #[inline(always)]
+        fn round_away(self, isa: Avx, o: Self) -> Self {
+            let zero = Self::splat(isa, 0.0);
+            let step = |v: Self, toward_one: Self| -> Self {
+                // SAFETY: as for every `Avx8` operation (AVX2 integer adds: `Avx` is x86-64-v3).
+                unsafe {
+                    let one = _mm256_set1_epi32(1);
+                    // +1 where `toward_one`, −1 elsewhere.
+                    let delta = _mm256_sub_epi32(
+                        _mm256_and_si256(_mm256_castps_si256(toward_one.0), _mm256_set1_epi32(2)),
+                        one,
+                    );
+                    Self(_mm256_castsi256_ps(_mm256_add_epi32(
+                        _mm256_castps_si256(v.0),
+                        delta,
+                    )))
+                }
+            };
+            let stays = |v: Self, inf: f32| v.simd_ne(v) | v.simd_eq(Self::splat(isa, inf));
+            let up_from = self + zero;
+            let up = step(up_from, up_from.simd_ge(zero));
+            let up = Self::select(stays(self, f32::INFINITY), self, up);
+            let down_from = (self.neg() + zero).neg();
+            let down = step(down_from, !down_from.simd_gt(zero));
+            let down = Self::select(stays(self, f32::NEG_INFINITY), self, down);
+            Self::select(
+                o.simd_gt(zero),
+                up,
+                Self::select(o.simd_lt(zero), down, self),
+            )
+        }
     }
 }
 
@@ -556,6 +611,11 @@ mod tests {
                     "select",
                     Avx8::select(x.simd_lt(y), x, y),
                     Lanes::select(Lanes::simd_lt(p, q), p, q),
+                );
+                same(
+                    "round_away",
+                    x.round_away(avx, y),
+                    p.round_away(Baseline, q),
                 );
                 // The lanes give the scalar code's bits.
                 let scalar = a.map(crate::math::sqrt).map(f32::to_bits);

@@ -15,143 +15,12 @@ use crate::geometry::Ray;
 use crate::math::{gamma, Frame};
 use crate::scene::{Hit, SceneView, SurfaceInteraction};
 use crate::simd::{Isa, Lanes};
+use crate::vec_lanes::{Soa3, N, V3};
 use glam::Vec3;
 
-/// Lanes of eight.
-const N: usize = 8;
-
-/// Eight 3-vectors, a lane type per axis.
-#[derive(Clone, Copy)]
-struct V3<L> {
-    x: L,
-    y: L,
-    z: L,
-}
-
-impl<L: Lanes<N>> V3<L> {
-    /// Lane `l` is `v(l)`.
-    #[inline(always)]
-    fn new(isa: L::Isa, v: impl Fn(usize) -> Vec3) -> Self {
-        Self {
-            x: L::new(isa, core::array::from_fn(|l| v(l).x)),
-            y: L::new(isa, core::array::from_fn(|l| v(l).y)),
-            z: L::new(isa, core::array::from_fn(|l| v(l).z)),
-        }
-    }
-
-    #[inline(always)]
-    fn splat(isa: L::Isa, v: Vec3) -> Self {
-        Self {
-            x: L::splat(isa, v.x),
-            y: L::splat(isa, v.y),
-            z: L::splat(isa, v.z),
-        }
-    }
-
-    #[inline(always)]
-    fn to_array(self) -> [Vec3; N] {
-        let (x, y, z) = (self.x.to_array(), self.y.to_array(), self.z.to_array());
-        core::array::from_fn(|l| Vec3::new(x[l], y[l], z[l]))
-    }
-
-    #[inline(always)]
-    fn add(self, b: Self) -> Self {
-        Self {
-            x: self.x + b.x,
-            y: self.y + b.y,
-            z: self.z + b.z,
-        }
-    }
-
-    #[inline(always)]
-    fn sub(self, b: Self) -> Self {
-        Self {
-            x: self.x - b.x,
-            y: self.y - b.y,
-            z: self.z - b.z,
-        }
-    }
-
-    #[inline(always)]
-    fn scale(self, s: L) -> Self {
-        Self {
-            x: self.x * s,
-            y: self.y * s,
-            z: self.z * s,
-        }
-    }
-
-    #[inline(always)]
-    fn abs(self) -> Self {
-        Self {
-            x: self.x.abs(),
-            y: self.y.abs(),
-            z: self.z.abs(),
-        }
-    }
-
-    #[inline(always)]
-    fn neg(self) -> Self {
-        Self {
-            x: self.x.neg(),
-            y: self.y.neg(),
-            z: self.z.neg(),
-        }
-    }
-
-    /// glam's `dot`.
-    #[inline(always)]
-    fn dot(self, b: Self) -> L {
-        self.x * b.x + self.y * b.y + self.z * b.z
-    }
-
-    /// glam's `cross`.
-    #[inline(always)]
-    fn cross(self, b: Self) -> Self {
-        Self {
-            x: self.y * b.z - b.y * self.z,
-            y: self.z * b.x - b.z * self.x,
-            z: self.x * b.y - b.x * self.y,
-        }
-    }
-
-    /// True where every component is zero (glam's `== Vec3::ZERO`).
-    #[inline(always)]
-    fn is_zero(self, zero: L) -> L {
-        self.x.simd_eq(zero) & self.y.simd_eq(zero) & self.z.simd_eq(zero)
-    }
-
-    #[inline(always)]
-    fn select(mask: L, a: Self, b: Self) -> Self {
-        Self {
-            x: L::select(mask, a.x, b.x),
-            y: L::select(mask, a.y, b.y),
-            z: L::select(mask, a.z, b.z),
-        }
-    }
-
-    /// glam's `normalize_or_zero` (`self · (1 / length)` where that reciprocal is finite and
-    /// positive), and the length it divided by.
-    #[inline(always)]
-    fn normalize_or_zero(self, one: L, zero: L) -> (Self, L) {
-        let length = self.dot(self).sqrt();
-        let rcp = one / length;
-        let ok = rcp.is_finite() & rcp.simd_gt(zero);
-        (
-            Self::select(ok, self.scale(rcp), Self::splat_lanes(zero)),
-            length,
-        )
-    }
-
-    #[inline(always)]
-    fn splat_lanes(v: L) -> Self {
-        Self { x: v, y: v, z: v }
-    }
-}
-
-/// [`Frame::from_normal`] lane by lane.
+/// [`Frame::from_normal`] lane by lane: the tangents `s` and `t`.
 #[inline(always)]
-fn frame_from_normal<L: Lanes<N>>(isa: L::Isa, n: V3<L>) -> [Frame; N] {
+fn frame_from_normal<L: Lanes<N>>(isa: L::Isa, n: V3<L>) -> (V3<L>, V3<L>) {
     let one = L::splat(isa, 1.0);
     let sign = L::select(n.z.simd_ge(L::splat(isa, 0.0)), one, one.neg());
     let a = one.neg() / (sign + n.z);
@@ -166,12 +35,67 @@ fn frame_from_normal<L: Lanes<N>>(isa: L::Isa, n: V3<L>) -> [Frame; N] {
         y: sign + n.y * n.y * a,
         z: n.y.neg(),
     };
-    let (s, t, n) = (s.to_array(), t.to_array(), n.to_array());
-    core::array::from_fn(|l| Frame {
-        s: s[l],
-        t: t[l],
-        n: n[l],
-    })
+    (s, t)
+}
+
+/// Eight surface interactions stored field by field, a lane each: where the batched path
+/// tracer keeps the vertices its paths scatter from.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SurfaceLanes {
+    pub p: Soa3,
+    pub p_spawn: Soa3,
+    pub p_err: Soa3,
+    pub ng: Soa3,
+    /// The shading frame's axes.
+    pub s: Soa3,
+    pub t: Soa3,
+    pub n: Soa3,
+    pub wo: Soa3,
+    pub material: [u32; N],
+    pub triangle: [u32; N],
+    pub b1: [f32; N],
+    pub b2: [f32; N],
+}
+
+impl SurfaceLanes {
+    /// The interaction of lane `l`.
+    #[inline(always)]
+    #[must_use]
+    pub fn get(&self, l: usize) -> SurfaceInteraction {
+        SurfaceInteraction {
+            p: self.p.get(l),
+            p_spawn: self.p_spawn.get(l),
+            p_err: self.p_err.get(l),
+            ng: self.ng.get(l),
+            frame: Frame {
+                s: self.s.get(l),
+                t: self.t.get(l),
+                n: self.n.get(l),
+            },
+            wo: self.wo.get(l),
+            material: self.material[l],
+            triangle: self.triangle[l],
+            b1: self.b1[l],
+            b2: self.b2[l],
+        }
+    }
+
+    /// Sets lane `l` to `si`.
+    #[inline(always)]
+    pub fn set(&mut self, l: usize, si: &SurfaceInteraction) {
+        self.p.set(l, si.p);
+        self.p_spawn.set(l, si.p_spawn);
+        self.p_err.set(l, si.p_err);
+        self.ng.set(l, si.ng);
+        self.s.set(l, si.frame.s);
+        self.t.set(l, si.frame.t);
+        self.n.set(l, si.frame.n);
+        self.wo.set(l, si.wo);
+        self.material[l] = si.material;
+        self.triangle[l] = si.triangle;
+        self.b1[l] = si.b1;
+        self.b2[l] = si.b2;
+    }
 }
 
 impl SceneView<'_> {
@@ -186,24 +110,24 @@ impl SceneView<'_> {
         hits: &[Option<Hit>; N],
         lanes: u32,
     ) -> [Option<SurfaceInteraction>; N] {
-        let mut out = [None; N];
+        let mut out = SurfaceLanes::default();
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-        if let Some(avx) = crate::simd::Avx::detect() {
-            avx.run(
+        let found = match crate::simd::Avx::detect() {
+            Some(avx) => avx.run(
                 #[inline(always)]
-                |avx| self.interactions_in(avx, rays, hits, lanes, |l, si| out[l] = Some(si)),
-            );
-            return out;
-        }
-        self.interactions_in(crate::simd::Baseline, rays, hits, lanes, |l, si| {
-            out[l] = Some(si);
-        });
-        out
+                |avx| self.interactions_in(avx, rays, hits, lanes, &mut out),
+            ),
+            None => self.interactions_in(crate::simd::Baseline, rays, hits, lanes, &mut out),
+        };
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+        let found = self.interactions_in(crate::simd::Baseline, rays, hits, lanes, &mut out);
+        core::array::from_fn(|l| (found >> l & 1 != 0).then(|| out.get(l)))
     }
 
     /// [`Self::interaction`] of `hits[l]` for `rays[l]`, for each lane `l` whose bit is set in
-    /// `lanes` and whose hit is `Some`, given to `out(l, interaction)` in lane order: the same
-    /// interactions, bit for bit, computed in the lanes of `isa`.
+    /// `lanes` and whose hit is `Some`, written to lane `l` of `out` (the other lanes of `out`
+    /// are overwritten too, with no meaning): the same interactions, bit for bit, computed in
+    /// the lanes of `isa`. Returns the lanes written (bits).
     #[inline(always)]
     pub fn interactions_in<I: Isa>(
         &self,
@@ -211,8 +135,8 @@ impl SceneView<'_> {
         rays: &[Ray; N],
         hits: &[Option<Hit>; N],
         lanes: u32,
-        mut out: impl FnMut(usize, SurfaceInteraction),
-    ) {
+        out: &mut SurfaceLanes,
+    ) -> u32 {
         let mut live = 0u32;
         let mut fill = None;
         for (l, hit) in hits.iter().enumerate() {
@@ -222,7 +146,7 @@ impl SceneView<'_> {
             }
         }
         let Some(fill) = fill else {
-            return;
+            return 0;
         };
         // Lanes without a hit compute the first live lane's, and are not given out.
         let hit = |l: usize| hits[l].filter(|_| live >> l & 1 != 0).unwrap_or(fill);
@@ -275,46 +199,40 @@ impl SceneView<'_> {
             .normalize_or_zero(one, zero);
         let ns = V3::select(ns.is_zero(zero), ng, ns);
         let up = V3::splat(isa, Vec3::Z);
-        let frames = frame_from_normal(isa, V3::select(ns.is_zero(zero), up, ns));
+        let n = V3::select(ns.is_zero(zero), up, ns);
+        let (s, t) = frame_from_normal(isa, n);
 
-        let (p, p_err, ng, wo) = (p.to_array(), p_err.to_array(), ng.to_array(), wo.to_array());
-        for l in 0..N {
-            if live >> l & 1 == 0 {
-                continue;
-            }
-            let h = &hit[l];
-            if lanes_done >> l & 1 == 0 {
-                out(l, self.interaction(&rays[l], h));
-                continue;
-            }
-            out(
-                l,
-                SurfaceInteraction {
-                    p: p[l],
-                    p_spawn: p[l],
-                    p_err: p_err[l],
-                    ng: ng[l],
-                    frame: frames[l],
-                    wo: wo[l],
-                    material: self.triangle_materials[h.triangle as usize],
-                    triangle: h.triangle,
-                    b1: h.b1,
-                    b2: h.b2,
-                },
-            );
+        out.p.store(p);
+        out.p_spawn.store(p);
+        out.p_err.store(p_err);
+        out.ng.store(ng);
+        out.s.store(s);
+        out.t.store(t);
+        out.n.store(n);
+        out.wo.store(wo);
+        out.b1 = b1.to_array();
+        out.b2 = b2.to_array();
+        out.triangle = hit.map(|h| h.triangle);
+        out.material = out.triangle.map(|t| self.triangle_materials[t as usize]);
+        let mut slow = live & !lanes_done;
+        while slow != 0 {
+            let l = slow.trailing_zeros() as usize;
+            slow &= slow - 1;
+            out.set(l, &self.interaction(&rays[l], &hit[l]));
         }
+        live
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::N;
     use crate::bvh::Bvh;
     use crate::geometry::Ray;
     use crate::math::Frame;
     use crate::sampler::mix64;
     use crate::scene::{Hit, Material, SceneView, SurfaceInteraction};
     use crate::texture::Textures;
+    use crate::vec_lanes::N;
     use glam::Vec3;
     use std::format;
     use std::vec::Vec;
@@ -485,10 +403,11 @@ mod tests {
                 let hit = hits[l].filter(|_| lanes >> l & 1 != 0)?;
                 Some(scene.interaction(&rays[l], &hit))
             });
-            let mut baseline = [None; N];
-            scene.interactions_in(crate::simd::Baseline, &rays, &hits, lanes, |l, si| {
-                baseline[l] = Some(si);
-            });
+            let mut stored = super::SurfaceLanes::default();
+            let found =
+                scene.interactions_in(crate::simd::Baseline, &rays, &hits, lanes, &mut stored);
+            let baseline: [Option<SurfaceInteraction>; N] =
+                core::array::from_fn(|l| (found >> l & 1 != 0).then(|| stored.get(l)));
             let dispatched = scene.interactions(&rays, &hits, lanes);
             for l in 0..N {
                 let what = |which: &str| format!("{which}: round {round} lane {l} {:?}", hits[l]);

@@ -36,13 +36,20 @@
 //! emitter sampling and the diffuse BSDF, the whole bounce of a diffuse scene.
 
 use super::path::{NextRay, PathState, ShadowQuery};
+use super::path_lanes::{
+    add_light_lanes, next_event_diffuse, scatter_diffuse, PathLanes, RayLanes, ShadowLanes,
+};
 use super::{dims, PathSettings, PathStrategy, PixelStats, SampleResult};
+use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::geometry::Ray;
+use crate::math::SolidAnglePdf;
 use crate::sampler::{
     lanes_of, IndependentSampler, Sampler, SamplerKind, Sampling, ZSobolPixelSampler,
 };
 use crate::scene::{Hit, SceneView};
+use crate::simd::Isa;
+use crate::surface_lanes::SurfaceLanes;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -264,7 +271,8 @@ fn draw_bounce<P: PixelSamples>(
 /// Renders samples `first .. first + count` of pixel `(x, y)` with the path tracer `strategy`,
 /// [`BATCH`] at a time, and adds them in sample order to `stats`: the sums
 /// [`super::render_pixel`] gives, bit for bit. The first `packet_segments` segments of the
-/// paths are traced as packets ([`PACKET_SEGMENTS`] is the measured choice).
+/// paths are traced as packets ([`PACKET_SEGMENTS`] is the measured choice). The lanes run
+/// with AVX where the CPU has it ([`crate::simd`]).
 #[allow(clippy::too_many_arguments)]
 #[must_use]
 pub fn render_pixel_batched(
@@ -285,27 +293,19 @@ pub fn render_pixel_batched(
         scene,
         camera,
         settings,
+        sampling,
         x,
         y,
         packet_segments,
     };
-    match sampling.kind {
-        SamplerKind::Independent => {
-            let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
-            job.samples(
-                &mut IndependentPixel::new(sampling.seed, pixel),
-                first,
-                count,
-                stats,
-            )
-        }
-        SamplerKind::ZSobol => job.samples(
-            &mut sampling.zsobol().pixel_sampler(x, y),
-            first,
-            count,
-            stats,
-        ),
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    if let Some(avx) = crate::simd::Avx::detect() {
+        return avx.run(
+            #[inline(always)]
+            |avx| job.samples(avx, first, count, stats),
+        );
     }
+    job.samples(crate::simd::Baseline, first, count, stats)
 }
 
 /// What every batch of a pixel shares: the path tracer, the scene, the pixel, the packets.
@@ -314,16 +314,36 @@ struct Job<'a, 'b> {
     scene: &'a SceneView<'b>,
     camera: &'a Camera,
     settings: &'a PathSettings,
+    sampling: &'a Sampling,
     x: u32,
     y: u32,
     packet_segments: u32,
 }
 
 impl Job<'_, '_> {
-    /// Samples `first .. first + count`, [`BATCH`] at a time, added in sample order to `stats`.
+    /// Samples `first .. first + count`, [`BATCH`] at a time in the lanes of `isa`, added in
+    /// sample order to `stats`.
     #[inline(always)]
-    fn samples<P: PixelSamples>(
+    fn samples<I: Isa>(&self, isa: I, first: u32, count: u32, stats: PixelStats) -> PixelStats {
+        let sampling = self.sampling;
+        match sampling.kind {
+            SamplerKind::Independent => {
+                let pixel = u64::from(self.y) * u64::from(self.camera.width) + u64::from(self.x);
+                let mut pixel = IndependentPixel::new(sampling.seed, pixel);
+                self.samples_from(isa, &mut pixel, first, count, stats)
+            }
+            SamplerKind::ZSobol => {
+                let mut pixel = sampling.zsobol().pixel_sampler(self.x, self.y);
+                self.samples_from(isa, &mut pixel, first, count, stats)
+            }
+        }
+    }
+
+    /// [`Self::samples`] with the pixel's sampler.
+    #[inline(always)]
+    fn samples_from<I: Isa, P: PixelSamples>(
         &self,
+        isa: I,
         pixel: &mut P,
         first: u32,
         count: u32,
@@ -333,7 +353,7 @@ impl Job<'_, '_> {
         let mut start = first;
         while start < end {
             let n = (end - start).min(BATCH as u32) as usize;
-            let results = self.batch(pixel, start, n);
+            let results = self.batch(isa, pixel, start, n);
             for r in &results[..n] {
                 stats.add(r.l);
                 stats.rays += u64::from(r.rays);
@@ -345,7 +365,13 @@ impl Job<'_, '_> {
 
     /// Samples `start .. start + n` (`n ≤ BATCH`) of the pixel, one lane each.
     #[inline(always)]
-    fn batch<P: PixelSamples>(&self, pixel: &mut P, start: u32, n: usize) -> [SampleResult; BATCH] {
+    fn batch<I: Isa, P: PixelSamples>(
+        &self,
+        isa: I,
+        pixel: &mut P,
+        start: u32,
+        n: usize,
+    ) -> [SampleResult; BATCH] {
         let Self {
             strategy,
             scene,
@@ -354,13 +380,14 @@ impl Job<'_, '_> {
             x,
             y,
             packet_segments,
+            ..
         } = *self;
         let indices: [u32; BATCH] = core::array::from_fn(|l| start.wrapping_add(l as u32));
         let mut results = [SampleResult::default(); BATCH];
-        // Emission seen from the camera, added to each path's radiance at the end as `li_path` adds
-        // it.
+        // Emission seen from the camera, added to each path's radiance at the end as `li_path`
+        // adds it.
         let mut seen = [Rgb::ZERO; BATCH];
-        let mut paths: [Option<PathState>; BATCH] = [None; BATCH];
+        let mut state = PathLanes::new();
         let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
         let used = (1u32 << n) - 1;
         for lane in 0..n {
@@ -378,17 +405,15 @@ impl Job<'_, '_> {
                     .flatten()
             })
         };
-        let mut live = 0u32;
-        let arrived = scene.interactions(&camera_rays, &hits, used);
-        for lane in 0..n {
-            let Some(si) = arrived[lane] else {
-                continue;
-            };
-            let bsdf = scene.bsdf_at(&si);
-            seen[lane] = scene.emitted(&si);
-            paths[lane] = Some(PathState::new(si, bsdf));
-            live |= 1 << lane;
+        let mut live = scene.interactions_in(isa, &camera_rays, &hits, used, &mut state.si);
+        let started = live;
+        for lane in lanes_of(live) {
+            seen[lane] = scene.emitted(&state.si.get(lane));
+            state.start(lane, bsdf_of(scene, &state.si, lane));
         }
+        // Diffuse vertices under MIS run their bounce in lanes; every other lane runs the
+        // one-path loop's stages on its own.
+        let in_lanes = *strategy == PathStrategy::MIS;
         let mut numbers = BounceNumbers {
             base: 0,
             drawn: 0,
@@ -397,45 +422,82 @@ impl Job<'_, '_> {
         let mut base = dims::CAMERA;
         let mut bounces = 0u32;
         let mut us = [None; BATCH];
+        let mut paths: [Option<PathState>; BATCH] = [None; BATCH];
         let mut shadows = [None; BATCH];
+        let mut shadow_lanes = ShadowLanes::default();
         let mut nexts = [None; BATCH];
+        let mut ray_lanes = RayLanes::default();
         while live != 0 {
             bounces += 1;
-            let offsets = bounce_offsets(strategy, settings, bounces, &paths, live);
+            // `PathState::light` ends every path here alike.
+            if !settings.allows(bounces) {
+                break;
+            }
+            let vector = if in_lanes { live & state.diffuse } else { 0 };
+            let scalar = live & !vector;
+            let offsets = bounce_offsets(strategy, settings, bounces, &state.bsdf, live);
             draw_bounce(pixel, &indices, live, base, offsets, &mut numbers);
+            let values = &numbers.values;
             // Each lane's next-event estimate, then all their shadow rays.
-            let mut shadow_lanes = 0u32;
-            for lane in lanes_of(live) {
-                let Some(path) = paths[lane].as_mut() else {
-                    continue;
-                };
-                match path.light(
-                    scene,
-                    settings,
-                    strategy,
-                    &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
-                ) {
-                    None => live &= !(1 << lane),
-                    Some((u, shadow)) => {
-                        us[lane] = Some(u);
-                        shadows[lane] = shadow;
-                        if shadow.is_some() {
-                            shadow_lanes |= 1 << lane;
-                            results[lane].rays += 1;
-                        }
+            let mut shadow_scalar = 0u32;
+            for lane in lanes_of(scalar) {
+                let mut path = state.path(lane, bounces - 1);
+                let sampler = &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel);
+                if let Some((u, shadow)) = path.light(scene, settings, strategy, sampler) {
+                    us[lane] = Some(u);
+                    shadows[lane] = shadow;
+                    if shadow.is_some() {
+                        shadow_scalar |= 1 << lane;
                     }
                 }
+                paths[lane] = Some(path);
+            }
+            let shadow_vector = if vector == 0 {
+                0
+            } else {
+                let light = dims::LIGHT_POSITION as usize;
+                next_event_diffuse(
+                    isa,
+                    scene,
+                    &state,
+                    vector,
+                    &values[dims::LIGHT_SELECT as usize],
+                    [&values[light], &values[light + 1]],
+                    &mut shadow_lanes,
+                )
+            };
+            let shadow_rays: [Ray; BATCH] = core::array::from_fn(|l| {
+                if shadow_vector >> l & 1 != 0 {
+                    let s = &shadow_lanes;
+                    Ray {
+                        o: s.o.get(l),
+                        d: s.d.get(l),
+                        t_max: s.t_max[l],
+                    }
+                } else {
+                    shadows[l]
+                        .as_ref()
+                        .map_or(Ray::new(Vec3::ZERO, Vec3::Z), |s: &ShadowQuery| s.ray)
+                }
+            });
+            for lane in lanes_of(shadow_scalar | shadow_vector) {
+                results[lane].rays += 1;
             }
             let packet = bounces < packet_segments;
-            let occluded = trace_shadows(scene, &shadows, shadow_lanes, packet);
-            for lane in lanes_of(shadow_lanes) {
+            let occluded =
+                trace_shadows(scene, &shadow_rays, shadow_scalar | shadow_vector, packet);
+            for lane in lanes_of(shadow_scalar) {
                 if let (Some(path), Some(shadow)) = (paths[lane].as_mut(), shadows[lane].as_ref()) {
                     path.add_light(shadow, occluded >> lane & 1 == 0);
                 }
             }
+            if shadow_vector != 0 {
+                add_light_lanes(isa, &mut state, &shadow_lanes, shadow_vector, occluded);
+            }
             // Each lane's scattered ray, then all of them.
-            for lane in lanes_of(live) {
+            for lane in lanes_of(scalar) {
                 let (Some(path), Some(u)) = (paths[lane].as_mut(), us[lane]) else {
+                    live &= !(1 << lane);
                     continue;
                 };
                 nexts[lane] = path.scatter(
@@ -444,34 +506,83 @@ impl Job<'_, '_> {
                     &mut LaneSampler::at(&numbers, lane, indices[lane], base, pixel),
                     u,
                 );
-                if nexts[lane].is_some() {
-                    results[lane].rays += 1;
-                } else {
+                state.put(lane, path);
+                if nexts[lane].is_none() {
                     live &= !(1 << lane);
                 }
             }
+            if vector != 0 {
+                let direction = dims::BSDF_DIRECTION as usize;
+                let goes_on = scatter_diffuse(
+                    isa,
+                    settings,
+                    bounces,
+                    &mut state,
+                    vector,
+                    [&values[direction], &values[direction + 1]],
+                    &values[dims::ROULETTE as usize],
+                    &mut ray_lanes,
+                );
+                let terminal = settings.is_terminal(bounces);
+                for lane in lanes_of(vector) {
+                    if goes_on >> lane & 1 == 0 {
+                        live &= !(1 << lane);
+                        continue;
+                    }
+                    nexts[lane] = Some(NextRay {
+                        ray: Ray::new(ray_lanes.o.get(lane), ray_lanes.d.get(lane)),
+                        terminal,
+                        counts_emission: true,
+                        specular: false,
+                        pdf: SolidAnglePdf(ray_lanes.pdf[lane]),
+                    });
+                }
+            }
+            for lane in lanes_of(live) {
+                results[lane].rays += 1;
+            }
             let hits = trace_next(scene, settings, &nexts, live, packet);
             let rays = rays_of(&nexts, |n| n.ray);
-            let arrived = scene.interactions(&rays, &hits, live);
+            let prev_p = state.si.p;
+            let arrived = scene.interactions_in(isa, &rays, &hits, live, &mut state.si);
             for lane in lanes_of(live) {
-                let (Some(path), Some(next), Some(si)) =
-                    (paths[lane].as_mut(), nexts[lane].as_ref(), arrived[lane])
-                else {
+                let Some(next) = nexts[lane].as_ref().filter(|_| arrived >> lane & 1 != 0) else {
                     // The ray left the scene.
                     live &= !(1 << lane);
                     continue;
                 };
-                if !path.arrive_at(scene, strategy, next, si) {
-                    live &= !(1 << lane);
+                // `PathState::arrive_at`.
+                let material = scene.material(state.si.material[lane]);
+                if next.counts_emission && material.is_emissive() {
+                    let si = state.si.get(lane);
+                    if let Some((le, w)) =
+                        next.emission_found(scene, strategy, prev_p.get(lane), &si)
+                    {
+                        let l = state.l.get(lane) + state.beta.get(lane) * le * w;
+                        state.l.set(lane, l);
+                    }
                 }
+                if next.terminal {
+                    live &= !(1 << lane);
+                    continue;
+                }
+                state.set_bsdf(lane, bsdf_of(scene, &state.si, lane));
             }
             base = base.wrapping_add(dims::PER_BOUNCE);
         }
-        for lane in 0..n {
-            results[lane].l = paths[lane].as_ref().map_or(Rgb::ZERO, |p| seen[lane] + p.l);
+        for lane in lanes_of(started) {
+            results[lane].l = seen[lane] + state.l.get(lane);
         }
         results
     }
+}
+
+/// The BSDF at lane `l`'s vertex ([`SceneView::bsdf_at`]).
+#[inline(always)]
+fn bsdf_of(scene: &SceneView<'_>, si: &SurfaceLanes, l: usize) -> Bsdf {
+    scene.material(si.material[l]).bsdf(&scene.textures, || {
+        scene.uv_at(si.triangle[l], si.b1[l], si.b2[l])
+    })
 }
 
 /// The segments of its paths a batch traces as packets ([`SceneView::intersect_packet`],
@@ -498,19 +609,12 @@ fn rays_of<T>(queries: &[Option<T>; BATCH], ray: impl Fn(&T) -> Ray) -> [Ray; BA
 
 /// Whether the shadow rays of `lanes` are occluded (bits), traced as a packet if `packet`.
 #[inline(always)]
-fn trace_shadows(
-    scene: &SceneView<'_>,
-    shadows: &[Option<ShadowQuery>; BATCH],
-    lanes: u32,
-    packet: bool,
-) -> u32 {
+fn trace_shadows(scene: &SceneView<'_>, rays: &[Ray; BATCH], lanes: u32, packet: bool) -> u32 {
     if packet && lanes.count_ones() > 1 {
-        let rays = rays_of(shadows, |s| s.ray);
-        return scene.occluded_packet(&rays, lanes);
+        return scene.occluded_packet(rays, lanes);
     }
     lanes_of(lanes).fold(0, |m, lane| {
-        let occluded = shadows[lane].is_some_and(|s| scene.occluded(&s.ray));
-        m | u32::from(occluded) << lane
+        m | u32::from(scene.occluded(&rays[lane])) << lane
     })
 }
 
@@ -553,7 +657,7 @@ fn bounce_offsets(
     strategy: &PathStrategy,
     settings: &PathSettings,
     bounces: u32,
-    paths: &[Option<PathState>; BATCH],
+    bsdfs: &[Bsdf; BATCH],
     live: u32,
 ) -> u32 {
     let mut offsets = 0b11 << dims::BSDF_DIRECTION;
@@ -564,7 +668,7 @@ fn bounce_offsets(
         offsets |= 1 << dims::ROULETTE;
     }
     for lane in lanes_of(live) {
-        if paths[lane].is_some_and(|p| p.bsdf.uses_lobe_choice()) {
+        if bsdfs[lane].uses_lobe_choice() {
             offsets |= 1 << dims::BSDF_LOBE;
             break;
         }

@@ -28,6 +28,7 @@ pub mod dims;
 mod direct;
 mod light_tracer;
 mod path;
+mod path_lanes;
 
 pub use bake::{bake_vertex, BakeEstimator, BakePoint, BakeSamples};
 pub use batch::{render_pixel_batched, IndependentPixel, PixelSamples, BATCH, PACKET_SEGMENTS};

@@ -11,6 +11,7 @@ use crate::math::SolidAnglePdf;
 use crate::sampler::Sampler;
 use crate::scene::{Hit, SceneView, SurfaceInteraction};
 use crate::Rgb;
+use glam::Vec3;
 
 /// How light arriving directly from emitters is found at each scattering vertex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -327,21 +328,8 @@ impl PathState {
         let prev_p = self.si.p;
         self.si = si;
         let si = &self.si;
-        if next.counts_emission {
-            let le = scene.emitted(si);
-            if le != Rgb::ZERO {
-                // A delta bounce has no next-event estimate to share the light with.
-                let w = if strategy.direct == DirectLighting::Mis && !next.specular {
-                    let dist2 = (si.p - prev_p).length_squared();
-                    let cos_light = si.frame.n.dot(-next.ray.d);
-                    let pdf_light =
-                        emitter_pdf(scene, si.triangle).to_solid_angle(dist2, cos_light);
-                    power_heuristic(next.pdf, pdf_light)
-                } else {
-                    1.0
-                };
-                self.l += self.beta * le * w;
-            }
+        if let Some((le, w)) = next.emission_found(scene, strategy, prev_p, si) {
+            self.l += self.beta * le * w;
         }
         if next.terminal {
             return false;
@@ -376,6 +364,37 @@ pub struct NextRay {
 }
 
 impl NextRay {
+    /// The emission this ray, leaving `prev_p`, finds where it lands at `si`, and its weight:
+    /// `(Le, w)`, which adds `β·Le·w` to the path's radiance; `None` where it finds none or
+    /// where next-event estimation counts it.
+    #[inline(always)]
+    #[must_use]
+    pub fn emission_found(
+        &self,
+        scene: &SceneView<'_>,
+        strategy: &PathStrategy,
+        prev_p: Vec3,
+        si: &SurfaceInteraction,
+    ) -> Option<(Rgb, f32)> {
+        if !self.counts_emission {
+            return None;
+        }
+        let le = scene.emitted(si);
+        if le == Rgb::ZERO {
+            return None;
+        }
+        // A delta bounce has no next-event estimate to share the light with.
+        let w = if strategy.direct == DirectLighting::Mis && !self.specular {
+            let dist2 = (si.p - prev_p).length_squared();
+            let cos_light = si.frame.n.dot(-self.ray.d);
+            let pdf_light = emitter_pdf(scene, si.triangle).to_solid_angle(dist2, cos_light);
+            power_heuristic(self.pdf, pdf_light)
+        } else {
+            1.0
+        };
+        Some((le, w))
+    }
+
     /// Traces the ray: its closest hit, or for a terminal ray only a hit on an emitter.
     #[inline(always)]
     #[must_use]
