@@ -1,5 +1,5 @@
 //! The batched path tracer ([`render_pixel_batched`], issue 14's lever 3) against the one-path
-//! loop ([`render_pixel`]) it must equal bit for bit (tests/tests/batched.rs): wall time of a
+//! loop ([`render_pixel_by_sample`]) it must equal bit for bit (tests/tests/batched.rs): wall time of a
 //! whole film, one thread, on the project's Cornell box (32 triangles) and TinyRender's
 //! `cbox.obj` (32k), MIS with Sobol' samples (the renderer's default); the batched film with
 //! its rays traced one by one ([`PACKET_SEGMENTS`]) and as packets for the camera rays
@@ -11,7 +11,7 @@
 use criterion::{Criterion, Throughput};
 use ember_cli::LoadedScene;
 use ember_kernel::integrator::{
-    render_pixel, render_pixel_batched, Integrator, PixelStats, PACKET_SEGMENTS,
+    render_pixel_batched, render_pixel_by_sample, Integrator, PixelStats, PACKET_SEGMENTS,
 };
 use ember_kernel::sampler::{SamplerKind, Sampling};
 use ember_kernel::splat::NoSplats;
@@ -72,7 +72,7 @@ fn main() {
                             packet_segments,
                         )
                     } else {
-                        render_pixel(
+                        render_pixel_by_sample(
                             integrator,
                             &view,
                             &camera,

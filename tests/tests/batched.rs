@@ -1,5 +1,5 @@
 //! The batched path tracers ([`render_pixel_batched`], issue 14's lever 3) against the one-path
-//! loop ([`render_pixel`]): bit for bit the same pixel sums and ray counts for implicit,
+//! loop ([`render_pixel_by_sample`]): bit for bit the same pixel sums and ray counts for implicit,
 //! explicit and MIS path tracing, with both samplers, on scenes that hold every BSDF (diffuse,
 //! Phong mixtures, smooth and rough conductors and dielectrics, textures), at bounded and
 //! unbounded depths, for sample ranges that do not fill whole batches, with the rays traced
@@ -10,7 +10,7 @@ mod common;
 use common::*;
 use ember_cli::LoadedScene;
 use ember_kernel::integrator::{
-    render_pixel, render_pixel_batched, Integrator, PathSettings, PixelStats, BATCH,
+    render_pixel_batched, render_pixel_by_sample, Integrator, PathSettings, PixelStats, BATCH,
     PACKET_SEGMENTS,
 };
 use ember_kernel::sampler::{SamplerKind, Sampling};
@@ -58,7 +58,7 @@ fn assert_same(toml: &Path, integrator: Integrator, path: PathSettings, kind: Sa
                         packet_segments,
                     )
                 } else {
-                    render_pixel(
+                    render_pixel_by_sample(
                         integrator,
                         &view,
                         &camera,

@@ -102,6 +102,17 @@ impl Phong {
         self.ks != Rgb::ZERO
     }
 
+    /// Whether this is Lambertian reflection with reflectance `kd`: no lobe (`Ks = 0`), never
+    /// sampled (`w_s = 0`) and no energy clamp (`scale = 1`), as TinyRender's `cbox.mtl` gives
+    /// its right wall. Its `eval`, `pdf` and `sample` are then [`super::Diffuse`]'s bit for bit
+    /// (`x·1 = x`, `(1 − 0)·cosθ = cosθ`), except that its pdf is NaN, not 0, for a NaN
+    /// direction: what lets the batched path tracer run it in the diffuse lanes.
+    #[inline]
+    #[must_use]
+    pub fn is_lambertian(&self) -> bool {
+        !self.has_lobe() && self.specular_weight == 0.0 && self.scale == 1.0
+    }
+
     /// `max(0, cos α)ⁿ`, 0 where `cos α ≤ 0`.
     #[inline]
     fn lobe_power(&self, cos_alpha: f32) -> f32 {

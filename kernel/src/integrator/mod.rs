@@ -431,8 +431,50 @@ impl PixelStats {
 /// sample is added to the running sums in index order, rendering `0..n` in one call or in any
 /// sequence of consecutive ranges gives bit-identical sums: progressive and interrupted
 /// renders agree with one-shot renders, whatever the threads or tiles.
+///
+/// MIS path tracing runs [`BATCH`] samples at a time ([`render_pixel_batched`], diffuse
+/// vertices in SIMD lanes), which gives these sums bit for bit (tests/tests/batched.rs) in
+/// less time; the other integrators run one sample at a time ([`render_pixel_by_sample`]).
+#[allow(clippy::too_many_arguments)]
 #[must_use]
 pub fn render_pixel<K: BdptSink>(
+    integrator: Integrator,
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    settings: &PathSettings,
+    sampling: &Sampling,
+    x: u32,
+    y: u32,
+    first: u32,
+    count: u32,
+    stats: PixelStats,
+    scratch: Option<&mut BdptScratch>,
+    sink: &mut K,
+) -> PixelStats {
+    if integrator == Integrator::PathMis {
+        return render_pixel_batched(
+            &PathStrategy::MIS,
+            scene,
+            camera,
+            settings,
+            sampling,
+            x,
+            y,
+            first,
+            count,
+            stats,
+            PACKET_SEGMENTS,
+        );
+    }
+    render_pixel_by_sample(
+        integrator, scene, camera, settings, sampling, x, y, first, count, stats, scratch, sink,
+    )
+}
+
+/// [`render_pixel`] one sample after another through [`render_sample`]: the reference the
+/// batched driver is tested against, and what every integrator but MIS path tracing runs.
+#[must_use]
+pub fn render_pixel_by_sample<K: BdptSink>(
     integrator: Integrator,
     scene: &SceneView<'_>,
     camera: &Camera,

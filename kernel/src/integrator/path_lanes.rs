@@ -40,7 +40,8 @@ pub(super) struct PathLanes {
     /// The vertex each path scatters from next, and its BSDF.
     pub si: SurfaceLanes,
     pub bsdf: [Bsdf; N],
-    /// The lanes whose BSDF is [`Bsdf::Diffuse`], and its reflectance there.
+    /// The lanes whose BSDF is [`Bsdf::Diffuse`] or a Phong BSDF that is Lambertian
+    /// ([`crate::bsdf::Phong::is_lambertian`]), and its reflectance there.
     pub diffuse: u32,
     pub kd: Soa3,
 }
@@ -71,11 +72,17 @@ impl PathLanes {
     #[inline(always)]
     pub fn set_bsdf(&mut self, l: usize, bsdf: Bsdf) {
         self.bsdf[l] = bsdf;
-        if let Bsdf::Diffuse(d) = bsdf {
+        // A Lambertian Phong's pdf differs from `Diffuse`'s only for a NaN direction, which
+        // the side test (`sides_agree`) refuses before any BSDF sees it.
+        let kd = match bsdf {
+            Bsdf::Diffuse(d) => Some(d.kd),
+            Bsdf::Phong(p) | Bsdf::Mixture(p) if p.is_lambertian() => Some(p.kd),
+            _ => None,
+        };
+        self.diffuse &= !(1 << l);
+        if let Some(kd) = kd {
             self.diffuse |= 1 << l;
-            self.kd.set(l, d.kd);
-        } else {
-            self.diffuse &= !(1 << l);
+            self.kd.set(l, kd);
         }
     }
 
