@@ -22,7 +22,6 @@
 use super::{lanes_of, mix64, Sampler};
 use glam::Vec2;
 #[cfg(target_arch = "x86_64")]
-use wide::u32x8;
 
 /// The generator matrices of Sobol's first two dimensions, as 32 columns of 32 bits (column
 /// `k` is what bit `k` of the index contributes). Dimension 0 is the van der Corput sequence
@@ -540,8 +539,9 @@ impl ZSobolPixelSampler {
     /// lanes whose bit is set in `live`, exactly what [`Self::start_sample`]`(indices[lane],
     /// dimension)` and a draw of `N` give (other lanes are left alone). The key and the pixel's
     /// digits are found once for all lanes, and the scramble runs in SIMD lanes
-    /// (`owen_scramble_lanes`); the sampler is left where it was.
-    #[inline]
+    /// (`scrambled_high_bits`); the sampler is left where it was. Always inlined, so that the
+    /// scramble is compiled with its caller's instructions.
+    #[inline(always)]
     pub fn draw_lanes<const N: usize>(
         &mut self,
         dimension: u32,
@@ -656,43 +656,14 @@ impl ZSobolLayout {
 /// Samples [`ZSobolPixelSampler::draw_lanes`] draws at once.
 pub const DRAW_LANES: usize = 8;
 
-/// The high 24 bits of [`owen_scramble_reversed`] of each lane: in SIMD lanes on x86-64 (the
-/// kernel's `wide` dependency is x86-64 only), lane after lane elsewhere.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn scrambled_high_bits(points: [u32; DRAW_LANES], seed: u32) -> [u32; DRAW_LANES] {
-    (owen_scramble_lanes(u32x8::new(points), seed) >> 8u32).to_array()
-}
-
-/// The high 24 bits of [`owen_scramble_reversed`] of each lane: in SIMD lanes on x86-64 (the
-/// kernel's `wide` dependency is x86-64 only), lane after lane elsewhere.
-#[cfg(not(target_arch = "x86_64"))]
+/// The high 24 bits of [`owen_scramble_reversed`] of each lane, written as a loop over the
+/// lanes for the compiler to vectorise with the instructions of the code it is inlined into:
+/// the batched path tracer's, compiled for AVX2 where the CPU has it (`vpmulld`, eight lanes),
+/// where `wide`'s `u32x8`, chosen when the kernel is compiled, emulated the 32-bit multiplies
+/// of SSE2 with shuffles.
 #[inline(always)]
 fn scrambled_high_bits(points: [u32; DRAW_LANES], seed: u32) -> [u32; DRAW_LANES] {
     points.map(|r| owen_scramble_reversed(r, seed) >> 8)
-}
-
-/// [`owen_scramble_reversed`] in eight lanes: the same wrapping integer operations lane by
-/// lane, then the bit reversal by swaps of ever larger fields (x86 has no bit-reversal
-/// instruction; the scalar `reverse_bits` is a byte swap and three such swaps).
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn owen_scramble_lanes(r: u32x8, seed: u32) -> u32x8 {
-    let mut v = r;
-    v ^= v * u32x8::splat(0x3d20_adea);
-    v += u32x8::splat(seed);
-    v *= u32x8::splat((seed >> 16) | 1);
-    v ^= v * u32x8::splat(0x0552_6c56);
-    v ^= v * u32x8::splat(0x53a2_2864);
-    let swap = |v: u32x8, shift: u32, mask: u32| {
-        let m = u32x8::splat(mask);
-        ((v >> shift) & m) | ((v & m) << shift)
-    };
-    v = swap(v, 1, 0x5555_5555);
-    v = swap(v, 2, 0x3333_3333);
-    v = swap(v, 4, 0x0F0F_0F0F);
-    v = swap(v, 8, 0x00FF_00FF);
-    (v >> 16u32) | (v << 16u32)
 }
 
 sampler_from_next!(ZSobolPixelSampler);
