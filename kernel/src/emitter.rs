@@ -1,8 +1,11 @@
 //! Area emitters: emissive triangles sampled from a CDF in a caller slice (FORMAT.md §5).
 
 use crate::geometry::triangle_point;
-use crate::math::{warp, AreaPdf, Frame, SolidAnglePdf};
+use crate::math::{gamma, warp, AreaPdf, Frame, SolidAnglePdf};
+use crate::sampler::lanes_of;
 use crate::scene::SceneView;
+use crate::simd::{Isa, Lanes};
+use crate::vec_lanes::{max_zero, N as LANES, V3};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -102,6 +105,90 @@ pub fn sample_emitter(scene: &SceneView<'_>, u_select: f32, u_pos: Vec2) -> Opti
         pdf: AreaPdf(prob / area),
         triangle,
     })
+}
+
+/// Eight points sampled on the emitters ([`sample_emitter_lanes`]), a lane each.
+#[derive(Clone, Copy)]
+pub(crate) struct EmitterLanes<L> {
+    pub p: V3<L>,
+    pub p_err: V3<L>,
+    pub ng: V3<L>,
+    pub n: V3<L>,
+    pub radiance: V3<L>,
+    /// The density of `p` per unit area over all emitters.
+    pub pdf: L,
+}
+
+/// [`sample_emitter`] for the lanes of `lanes`, with `u_select[l]` and `(u_pos[0][l],
+/// u_pos[1][l])` in lane `l`: the same samples, bit for bit, the search of the CDF and the
+/// gather of the triangle lane by lane, the arithmetic in the lanes of `isa`. Returns them and
+/// the lanes that have one (bits).
+#[inline(always)]
+pub(crate) fn sample_emitter_lanes<I: Isa>(
+    isa: I,
+    scene: &SceneView<'_>,
+    lanes: u32,
+    u_select: &[f32; LANES],
+    u_pos: [&[f32; LANES]; 2],
+) -> Option<(EmitterLanes<I::Eight>, u32)> {
+    type L<I> = <I as Isa>::Eight;
+    let cdf = scene.emitter_cdf;
+    if lanes == 0 || cdf.is_empty() || cdf[cdf.len() - 1].is_nan() || cdf[cdf.len() - 1] <= 0.0 {
+        return None;
+    }
+    let total = cdf[cdf.len() - 1];
+    let mut upper = [0.0f32; LANES];
+    let mut lower = [0.0f32; LANES];
+    let mut triangle = [scene.emitter_triangles[0]; LANES];
+    for l in lanes_of(lanes) {
+        let i = find_interval(cdf, u_select[l]);
+        upper[l] = cdf[i];
+        lower[l] = if i > 0 { cdf[i - 1] } else { 0.0 };
+        triangle[l] = scene.emitter_triangles[i];
+    }
+    let corners = triangle.map(|t| scene.triangles[t as usize]);
+    let vertex = |k: usize| V3::<L<I>>::new(isa, |l| scene.positions[corners[l][k] as usize]);
+    let normal = |k: usize| V3::<L<I>>::new(isa, |l| scene.normals[corners[l][k] as usize]);
+    let lane = |x: f32| L::<I>::splat(isa, x);
+    let (zero, one) = (lane(0.0), lane(1.0));
+    let prob = (L::<I>::new(isa, upper) - L::<I>::new(isa, lower)) / lane(total);
+    let (p0, p1, p2) = (vertex(0), vertex(1), vertex(2));
+    let (e1, e2) = (p1.sub(p0), p2.sub(p0));
+    let cross = e1.cross(e2);
+    let area = lane(0.5) * cross.dot(cross).sqrt();
+    // Refused where `area` or `prob` is NaN or not positive.
+    let ok = area.simd_gt(zero) & prob.simd_gt(zero);
+    // `warp::sample_uniform_triangle` and `triangle_point`.
+    let s = max_zero(one - L::<I>::new(isa, *u_pos[0]), zero).sqrt();
+    let (b1, b2) = (one - s, s * L::<I>::new(isa, *u_pos[1]));
+    let b0 = one - b1 - b2;
+    let x = e1.scale(b1);
+    let y = e2.scale(b2);
+    let p = p0.add(x.add(y));
+    let p_err = p0
+        .abs()
+        .scale(lane(gamma(1)))
+        .add(x.abs().add(y.abs()).scale(lane(gamma(6))));
+    let ng = cross.div(lane(2.0) * area);
+    let (n, _) = normal(0)
+        .scale(b0)
+        .add(normal(1).scale(b1))
+        .add(normal(2).scale(b2))
+        .normalize_or_zero(one, zero);
+    let n = V3::select(n.is_zero(zero), ng, n);
+    let radiance = V3::<L<I>>::new(isa, |l| {
+        let material = scene.triangle_materials[triangle[l] as usize];
+        scene.material(material).emission
+    });
+    let samples = EmitterLanes {
+        p,
+        p_err,
+        ng,
+        n,
+        radiance,
+        pdf: prob / area,
+    };
+    Some((samples, ok.to_bitmask() & lanes))
 }
 
 /// Light leaving an emitter, for paths traced from the lights ([`sample_le`]).

@@ -18,7 +18,7 @@
 use super::path::{PathState, Roulette};
 use super::PathSettings;
 use crate::bsdf::{Bsdf, SurfaceBsdf};
-use crate::emitter::sample_emitter;
+use crate::emitter::sample_emitter_lanes;
 use crate::math::{sin_cos, INV_PI};
 use crate::sampler::lanes_of;
 use crate::scene::SceneView;
@@ -27,7 +27,6 @@ use crate::surface_lanes::SurfaceLanes;
 use crate::vec_lanes::{max_zero, min_num, Soa3, N, V3};
 use crate::Rgb;
 use core::f32::consts::{FRAC_PI_2, FRAC_PI_4};
-use glam::Vec2;
 
 /// Eight paths between bounces, stored by field: what [`PathState`] holds, a lane each.
 #[derive(Clone, Copy, Debug)]
@@ -238,35 +237,18 @@ pub(super) fn next_event_diffuse<I: Isa>(
     u_light: [&[f32; N]; 2],
     out: &mut ShadowLanes,
 ) -> u32 {
-    // The emitter samples, lane by lane (a CDF search and a gather each).
-    let (mut es_p, mut es_err, mut es_ng) = (Soa3::default(), Soa3::default(), Soa3::default());
-    let (mut es_n, mut es_le) = (Soa3::default(), Soa3::default());
-    let mut es_pdf = [1.0f32; N];
-    let mut sampled = 0u32;
-    for l in lanes_of(lanes) {
-        let u = Vec2::new(u_light[0][l], u_light[1][l]);
-        if let Some(es) = sample_emitter(scene, u_select[l], u) {
-            es_p.set(l, es.p);
-            es_err.set(l, es.p_err);
-            es_ng.set(l, es.ng);
-            es_n.set(l, es.n);
-            es_le.set(l, es.radiance);
-            es_pdf[l] = es.pdf.0;
-            sampled |= 1 << l;
-        }
-    }
-    if sampled == 0 {
-        return 0;
-    }
     type L<I> = <I as Isa>::Eight;
+    let Some((es, sampled)) = sample_emitter_lanes(isa, scene, lanes, u_select, u_light) else {
+        return 0;
+    };
     let zero = L::<I>::splat(isa, 0.0);
     let v = Vertex::<L<I>>::load(isa, state);
-    let (e_p, e_err, e_ng) = (es_p.load::<L<I>>(isa), es_err.load(isa), es_ng.load(isa));
+    let (e_p, e_err, e_ng) = (es.p, es.p_err, es.ng);
     // `sample_direct_unoccluded`.
     let to_light = e_p.sub(v.p);
     let dist2 = to_light.dot(to_light);
     let wi = to_light.div(dist2.sqrt());
-    let cos_light = es_n.load::<L<I>>(isa).dot(wi.neg());
+    let cos_light = es.n.dot(wi.neg());
     let wi_l = to_local(wi, v.s, v.t, v.n);
     let wi_ng = wi.dot(v.ng);
     let agree = v.sides_agree(wi_ng, wi_l.z, zero);
@@ -293,8 +275,8 @@ pub(super) fn next_event_diffuse<I: Isa>(
     let t = L::<I>::select(t.simd_gt(top), top, t);
     let t_max = L::<I>::select(len.simd_gt(zero), t, zero);
     // `AreaPdf::to_solid_angle` and the contribution.
-    let pdf = L::<I>::new(isa, es_pdf) * dist2 / cos_light.abs();
-    let contribution = f.mul(es_le.load(isa)).scale(wi.dot(v.n).abs() / pdf);
+    let pdf = es.pdf * dist2 / cos_light.abs();
+    let contribution = f.mul(es.radiance).scale(wi.dot(v.n).abs() / pdf);
     out.o.store(o);
     out.d.store(d);
     out.t_max = t_max.to_array();

@@ -21,7 +21,6 @@
 
 use super::{lanes_of, mix64, Sampler};
 use glam::Vec2;
-#[cfg(target_arch = "x86_64")]
 
 /// The generator matrices of Sobol's first two dimensions, as 32 columns of 32 bits (column
 /// `k` is what bit `k` of the index contributes). Dimension 0 is the van der Corput sequence
