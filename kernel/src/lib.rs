@@ -7,7 +7,8 @@
 //! - [`geometry`]: rays, watertight triangle intersection, robust ray origins.
 //! - [`bvh`]: binned-SAH BVH built into caller slices, fixed-stack traversal.
 //! - [`simd`]: the SIMD lanes of the ray queries and of the batched shading, and their run-time
-//!   choice of AVX2 on x86-64.
+//!   choice of AVX2 on x86-64; `vec_lanes`: eight 3-vectors in lanes ([`Soa3`] stores them by
+//!   axis), with glam's operations as glam computes them.
 //! - [`camera`]: the TinyRender pinhole camera.
 //! - [`bsdf`]: the closed set of BSDFs (enum dispatch, local shading frame) and the
 //!   [`bsdf::SurfaceBsdf`] wrapper integrators use them through.

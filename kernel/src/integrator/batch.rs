@@ -1,39 +1,45 @@
-//! The path tracers run [`BATCH`] samples of a pixel at a time, a bounce at a time: the
-//! driver of issue 14's lever 3 (many paths in SIMD lanes, the way Mitsuba 3's vectorised
-//! variants run). Each lane runs the one-path loop's own stages ([`PathState::light`],
-//! [`PathState::add_light`], [`PathState::scatter`], [`PathState::arrive`]), so a batched
-//! render is the scalar render bit for bit (tests/tests/batched.rs: every path tracer, both
-//! samplers, every BSDF). What the lanes share is done once for all of them: at a given bounce
-//! every lane draws the same dimensions, so their numbers are drawn together
-//! ([`PixelSamples::draw_lanes`]; for Sobol' samples the key and the pixel's digits once, the
-//! digit permutations once per run of lanes that share them, the scramble in SIMD lanes), and
-//! the surface interactions of the rays that land are computed together, in SIMD lanes
-//! ([`SceneView::interactions`]). The rays are traced one by one: packets through the wide
-//! tree ([`SceneView::intersect_packet`], [`SceneView::occluded_packet`]) are available for
-//! the first segments of the paths ([`PACKET_SEGMENTS`]) but did not pay.
+//! The path tracers run [`BATCH`] samples of a pixel at a time, a bounce at a time: issue 14's
+//! lever 3 (many paths in SIMD lanes, the way Mitsuba 3's vectorised variants run), and what
+//! [`super::render_pixel`] runs for MIS path tracing. The paths' state is stored lane by lane
+//! ([`PathLanes`]: radiance, throughput and the vertex, field by field), and a bounce runs in
+//! SIMD lanes, with AVX where the CPU has it, for the paths at diffuse vertices under MIS
+//! (`super::path_lanes`: emitter sampling, the BSDF's value and pdf, the shadow ray, the
+//! power heuristic, cosine sampling, roulette, the next ray; the whole bounce of the benchmark
+//! scenes). A path at any other vertex, or of another path tracer, runs the one-path loop's
+//! own stages ([`PathState::light`], [`PathState::add_light`], [`PathState::scatter`]) on a
+//! [`PathState`] taken out of the lanes and put back. What every path does alike is done once
+//! for all: at a given bounce every lane draws the same dimensions, so their numbers are drawn
+//! together ([`PixelSamples::draw_lanes`]), and the surface interactions of the rays that land
+//! are computed together in lanes, into the lanes' storage ([`SceneView::interactions_in`]).
+//! The rays are traced one by one: packets through the wide tree
+//! ([`SceneView::intersect_packet`], [`SceneView::occluded_packet`]) are available for the first
+//! segments of the paths ([`PACKET_SEGMENTS`]) but did not pay.
 //!
-//! Status: not used by the hosts, because it does not pay yet. Measured on an AMD EPYC (Zen 5;
-//! sse4_2 avx avx2 fma avx512f/dq/bw/vl), 2026-12-07, `cargo bench -p ember-tests --bench
-//! batch` (64 × 64, 16 spp, MIS, Sobol', one thread, shipped x86-64 build with the AVX
-//! dispatch), batched film time over the one-path loop's, alternating runs:
-//! - before this change (packets for the camera rays and the first bounce's rays, the
-//!   interactions one lane at a time, one run): 1.21 on the project's Cornell box and 1.21 on
-//!   TinyRender's `cbox.obj`;
-//! - packets ([`PACKET_SEGMENTS`]), in one sitting, with the interactions in lanes: for the
-//!   camera and first-bounce rays 1.25–1.28 and 1.28, for the camera rays 1.21–1.24 and
-//!   1.15–1.21, none 1.13–1.16 and 1.12–1.14;
-//! - the interactions in lanes against one lane at a time, without packets, 3 alternating
-//!   runs: 78.3–80.9 ms against 80.3–83.0 ms, and 90.6–92.1 against 90.9–94.3 (2% saved);
-//! - the queries' rays and the lanes' inputs gathered in place instead of by array `map`
-//!   (whose copies were 8% of the batched profile): 1.10–1.14 and 1.07.
+//! Each lane computes what the one-path loop computes, bit for bit, so a batched render is the
+//! scalar render (tests/tests/batched.rs: every path tracer, both samplers, every BSDF; the
+//! determinism script renders through it on every target).
 //!
-//! The interaction stage costs as much in lanes as one lane at a time (33 against 36 ns per
-//! interaction): its arithmetic is an eighth, but its inputs are gathered from eight hits and
-//! its outputs written back to eight `SurfaceInteraction`s that the scalar stages read. Each
-//! stage vectorised on its own pays only that way; what pays is path state that stays in
-//! lanes from one stage to the next (structure of arrays: throughput, radiance, the point, its
-//! frame), so that the stages exchange registers, not structs. The stages to move next are
-//! emitter sampling and the diffuse BSDF, the whole bounce of a diffuse scene.
+//! Measured on an AMD EPYC (Zen 5; sse4_2 avx avx2 fma avx512f/dq/bw/vl), 2026-12-07, `cargo
+//! bench -p ember-tests --bench batch` (64 × 64, 16 spp, MIS, Sobol', one thread, shipped
+//! x86-64 build with the AVX dispatch), batched film time over the one-path loop's (the
+//! project's Cornell box; TinyRender's `cbox.obj`):
+//! - packets for the camera rays and the first bounce's, the interactions one lane at a time:
+//!   1.21 and 1.21; without packets, the interactions in lanes: 1.13–1.16 and 1.12–1.14; the
+//!   queries' rays built in place: 1.10–1.14 and 1.07. The interaction stage cost as much in
+//!   lanes as one lane at a time (33 against 36 ns): its inputs were gathered from eight hits and
+//!   its outputs written back to eight `SurfaceInteraction`s that the scalar stages read.
+//! - the path state in lanes and the diffuse bounce in lanes: 1.11 (the ulp steps of the ray
+//!   origins and a closure left out of line cost 15%); with those in lanes: 0.89–0.91 and
+//!   0.93–0.97; with the Sobol' scramble compiled in the caller's AVX2 lanes and the emitter
+//!   samples in lanes: 0.84–0.87 and 0.85–0.88 (55–57 ms against 64–67, 63–64 against 74–76).
+//!   `ember render` (one thread): the Cornell box at 256², 64 spp, 3.54–3.59 s against the
+//!   one-path loop's 4.11–4.15 s; `cbox.obj` at 32 spp 14.6–14.7 s against 16.9–17.1 s, with
+//!   identical EXRs.
+//!
+//! Still one lane at a time: the emitter search and the gathers of triangle data (a lane each),
+//! the sine and cosine of the disk warp (`libm`'s), the arrival at the next vertex (its
+//! emission and BSDF), the ray queries, and every non-diffuse BSDF (Phong and mixtures with a
+//! lobe, conductors, dielectrics).
 
 use super::path::{NextRay, PathState, ShadowQuery};
 use super::path_lanes::{
