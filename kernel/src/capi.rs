@@ -48,12 +48,13 @@
 //! further 7 KiB of stack while the materials are converted), and once per material for
 //! textures beyond those.
 //!
-//! A thread that calls ember needs [`EMBER_STACK_BYTES`] (256 KiB) of stack. Measured: every
-//! rendering call, whatever the integrator, overwrites 83,456 bytes of a painted 256 KiB
-//! pthread stack (`tests/capi/cornell.c` runs its rendering threads on such stacks, x86_64
-//! Linux, release build, glibc; an idle thread overwrites 4,464 of them): about 80 KiB, the
-//! material table and the texel statistics while the materials are converted being most of
-//! it. BDPT adds nothing: its two subpaths (24 KiB) live in a scratch the caller provides
+//! A thread that calls ember needs [`EMBER_STACK_BYTES`] (256 KiB) of stack. Measured: the
+//! deepest rendering call overwrites 122,112 bytes of a painted 256 KiB pthread stack
+//! (`tests/capi/cornell.c` runs its rendering threads on such stacks, x86_64 Linux, release
+//! build, glibc; 2026-12-07, since MIS path tracing runs eight paths at a time in SIMD lanes;
+//! 103,912 before, 83,456 when the table and the texel statistics were most of it): about
+//! 120 KiB, the material table and the texel statistics while the materials are converted
+//! (about 70 KiB) and the batched path tracer's frame being most of it. BDPT adds nothing: its two subpaths (24 KiB) live in a scratch the caller provides
 //! ([`ember_render_scratch_size`]), so a BDPT call needs the same stack as a path tracer's, and
 //! a thread can keep its scratch from call to call. The test fails if a call uses more than
 //! half of `EMBER_STACK_BYTES`; with 64 KiB stacks (over a guard page) it crashes. Main threads (8 MiB on Linux) and the default secondary
@@ -225,10 +226,10 @@ pub const EMBER_ERROR_ABI: i32 = 6;
 /// Most materials a scene may have in the rendering calls.
 pub const EMBER_MAX_MATERIALS: u32 = 1024;
 
-/// The stack, in bytes, a thread must have to call ember's functions: 256 KiB. Each rendering
-/// or baking call uses about 80 KiB of it, whatever the integrator (mostly the material table
-/// of `EMBER_MAX_MATERIALS` entries, 60 KiB; BDPT's subpaths are in the caller's scratch, not
-/// on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
+/// The stack, in bytes, a thread must have to call ember's functions: 256 KiB. A rendering or
+/// baking call uses up to about 120 KiB of it (the material table of `EMBER_MAX_MATERIALS`
+/// entries, 60 KiB, and MIS path tracing's eight paths in flight; BDPT's subpaths are in the
+/// caller's scratch, not on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
 /// exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack
 /// overflows). Default thread stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are
 /// enough; raise smaller ones (musl's 128 KiB, job systems) with
