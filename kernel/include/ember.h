@@ -64,10 +64,10 @@
 // Most materials a scene may have in the rendering calls.
 #define EMBER_MAX_MATERIALS 1024
 
-// The stack, in bytes, a thread must have to call ember's functions: 256 KiB. Each rendering
-// or baking call uses about 80 KiB of it, whatever the integrator (mostly the material table
-// of `EMBER_MAX_MATERIALS` entries, 60 KiB; BDPT's subpaths are in the caller's scratch, not
-// on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
+// The stack, in bytes, a thread must have to call ember's functions: 256 KiB. A rendering or
+// baking call uses up to about 120 KiB of it (the material table of `EMBER_MAX_MATERIALS`
+// entries, 60 KiB, and MIS path tracing's eight paths in flight; BDPT's subpaths are in the
+// caller's scratch, not on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
 // exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack
 // overflows). Default thread stacks of glibc (8 MiB), macOS (512 KiB) and Windows (1 MiB) are
 // enough; raise smaller ones (musl's 128 KiB, job systems) with
