@@ -31,7 +31,8 @@
 //! - the path state in lanes and the diffuse bounce in lanes: 1.11 (the ulp steps of the ray
 //!   origins and a closure left out of line cost 15%); with those in lanes: 0.89–0.91 and
 //!   0.93–0.97; with the Sobol' scramble compiled in the caller's AVX2 lanes and the emitter
-//!   samples in lanes: 0.84–0.87 and 0.85–0.88 (55–57 ms against 64–67, 63–64 against 74–76).
+//!   samples in lanes, three runs of the final build: 0.86–0.87 and 0.87–0.94 (54.6–56.5 ms
+//!   against 63.6–64.9, 64.2–68.4 against 72.2–73.9).
 //!   `ember render` (one thread): the Cornell box at 256², 64 spp, 3.54–3.59 s against the
 //!   one-path loop's 4.11–4.15 s; `cbox.obj` at 32 spp 14.6–14.7 s against 16.9–17.1 s, with
 //!   identical EXRs.
