@@ -49,7 +49,7 @@
 //! textures beyond those.
 //!
 //! A thread that calls ember needs [`EMBER_STACK_BYTES`] (256 KiB) of stack. Measured: the
-//! deepest rendering call overwrites 122,112 bytes of a painted 256 KiB pthread stack
+//! deepest rendering call overwrites 122,112–123,424 bytes of a painted 256 KiB pthread stack
 //! (`tests/capi/cornell.c` runs its rendering threads on such stacks, x86_64 Linux, release
 //! build, glibc; 2026-12-07, since MIS path tracing runs eight paths at a time in SIMD lanes;
 //! 103,912 before, 83,456 when the table and the texel statistics were most of it): about

@@ -1,11 +1,11 @@
 //! Area emitters: emissive triangles sampled from a CDF in a caller slice (FORMAT.md §5).
 
 use crate::geometry::triangle_point;
-use crate::math::{gamma, warp, AreaPdf, Frame, SolidAnglePdf};
+use crate::math::{warp, AreaPdf, Frame, SolidAnglePdf};
 use crate::sampler::lanes_of;
 use crate::scene::SceneView;
 use crate::simd::{Isa, Lanes};
-use crate::vec_lanes::{max_zero, N as LANES, V3};
+use crate::vec_lanes::{max_zero, triangle_point as triangle_point_lanes, N as LANES, V3};
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -162,13 +162,7 @@ pub(crate) fn sample_emitter_lanes<I: Isa>(
     let s = max_zero(one - L::<I>::new(isa, *u_pos[0]), zero).sqrt();
     let (b1, b2) = (one - s, s * L::<I>::new(isa, *u_pos[1]));
     let b0 = one - b1 - b2;
-    let x = e1.scale(b1);
-    let y = e2.scale(b2);
-    let p = p0.add(x.add(y));
-    let p_err = p0
-        .abs()
-        .scale(lane(gamma(1)))
-        .add(x.abs().add(y.abs()).scale(lane(gamma(6))));
+    let (p, p_err) = triangle_point_lanes(isa, b1, b2, p0, e1, e2);
     let ng = cross.div(lane(2.0) * area);
     let (n, _) = normal(0)
         .scale(b0)

@@ -15,7 +15,7 @@ use crate::geometry::Ray;
 use crate::math::{gamma, Frame};
 use crate::scene::{Hit, SceneView, SurfaceInteraction};
 use crate::simd::{Isa, Lanes};
-use crate::vec_lanes::{Soa3, N, V3};
+use crate::vec_lanes::{triangle_point, Soa3, N, V3};
 use glam::Vec3;
 
 /// [`Frame::from_normal`] lane by lane: the tangents `s` and `t`.
@@ -167,13 +167,7 @@ impl SceneView<'_> {
         // `surface_at_vertices`: the point and its error (`triangle_point`).
         let b0 = one - b1 - b2;
         let (e1, e2) = (p1.sub(p0), p2.sub(p0));
-        let x = e1.scale(b1);
-        let y = e2.scale(b2);
-        let p = p0.add(x.add(y));
-        let p_err = p0
-            .abs()
-            .scale(lane(gamma(1)))
-            .add(x.abs().add(y.abs()).scale(lane(gamma(6))));
+        let (p, p_err) = triangle_point(isa, b1, b2, p0, e1, e2);
         let cross = e1.cross(e2);
         let (ng, area2) = cross.normalize_or_zero(one, zero);
         // `inset_barycentrics`: the point stays where it is if the triangle is degenerate or

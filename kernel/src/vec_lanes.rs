@@ -4,6 +4,7 @@
 //! paths' state between stages (a stage loads an axis with one instruction and stores it with
 //! one, where eight `Vec3`s would be gathered and scattered a float at a time).
 
+use crate::math::gamma;
 use crate::simd::Lanes;
 use glam::Vec3;
 
@@ -174,6 +175,27 @@ impl<L: Lanes<N>> V3<L> {
             length,
         )
     }
+}
+
+/// [`crate::geometry::triangle_point`] lane by lane, given the edges `e1 = p1 − p0` and
+/// `e2 = p2 − p0`: the point with barycentrics `(b1, b2)` and its error bound.
+#[inline(always)]
+pub(crate) fn triangle_point<L: Lanes<N>>(
+    isa: L::Isa,
+    b1: L,
+    b2: L,
+    p0: V3<L>,
+    e1: V3<L>,
+    e2: V3<L>,
+) -> (V3<L>, V3<L>) {
+    let x = e1.scale(b1);
+    let y = e2.scale(b2);
+    let p = p0.add(x.add(y));
+    let p_err = p0
+        .abs()
+        .scale(L::splat(isa, gamma(1)))
+        .add(x.abs().add(y.abs()).scale(L::splat(isa, gamma(6))));
+    (p, p_err)
 }
 
 /// `f32::max(x, 0.0)` lane by lane: `x` where it is above 0, else 0 (NaN gives 0, as
