@@ -44,7 +44,7 @@
 
 use super::path::{NextRay, PathState, ShadowQuery};
 use super::path_lanes::{
-    add_light_lanes, next_event_diffuse, scatter_diffuse, PathLanes, RayLanes, ShadowLanes,
+    add_light_lanes, next_event_diffuse, scatter_diffuse, PathLanes, RayLanes, ShadowLanes, Vertex,
 };
 use super::{dims, PathSettings, PathStrategy, PixelStats, SampleResult};
 use crate::bsdf::Bsdf;
@@ -459,19 +459,21 @@ impl Job<'_, '_> {
                 }
                 paths[lane] = Some(path);
             }
-            let shadow_vector = if vector == 0 {
-                0
-            } else {
+            // The diffuse vertices, read once for both lane stages of the bounce.
+            let vertex = (vector != 0).then(|| Vertex::<I::Eight>::load(isa, &state));
+            let shadow_vector = if let Some(vertex) = &vertex {
                 let light = dims::LIGHT_POSITION as usize;
                 next_event_diffuse(
                     isa,
                     scene,
-                    &state,
+                    vertex,
                     vector,
                     &values[dims::LIGHT_SELECT as usize],
                     [&values[light], &values[light + 1]],
                     &mut shadow_lanes,
                 )
+            } else {
+                0
             };
             let shadow_rays: [Ray; BATCH] = core::array::from_fn(|l| {
                 if shadow_vector >> l & 1 != 0 {
@@ -518,13 +520,14 @@ impl Job<'_, '_> {
                     live &= !(1 << lane);
                 }
             }
-            if vector != 0 {
+            if let Some(vertex) = &vertex {
                 let direction = dims::BSDF_DIRECTION as usize;
                 let goes_on = scatter_diffuse(
                     isa,
                     settings,
                     bounces,
                     &mut state,
+                    vertex,
                     vector,
                     [&values[direction], &values[direction + 1]],
                     &values[dims::ROULETTE as usize],

@@ -131,8 +131,9 @@ pub(super) struct RayLanes {
     pub pdf: [f32; N],
 }
 
-/// What a stage at a diffuse vertex reads of it, loaded once for the stages of a bounce.
-struct Vertex<L> {
+/// What a stage at a diffuse vertex reads of it, loaded once for the stages of a bounce
+/// ([`Self::load`]; the vertex does not change between them).
+pub(super) struct Vertex<L> {
     p: V3<L>,
     p_spawn: V3<L>,
     p_err: V3<L>,
@@ -149,7 +150,7 @@ struct Vertex<L> {
 
 impl<L: Lanes<N>> Vertex<L> {
     #[inline(always)]
-    fn load(isa: L::Isa, state: &PathLanes) -> Self {
+    pub(super) fn load(isa: L::Isa, state: &PathLanes) -> Self {
         let si = &state.si;
         let (s, t, n) = (si.s.load(isa), si.t.load(isa), si.n.load(isa));
         let wo: V3<L> = si.wo.load(isa);
@@ -231,7 +232,7 @@ fn offset_ray_origin<L: Lanes<N>>(
 pub(super) fn next_event_diffuse<I: Isa>(
     isa: I,
     scene: &SceneView<'_>,
-    state: &PathLanes,
+    v: &Vertex<I::Eight>,
     lanes: u32,
     u_select: &[f32; N],
     u_light: [&[f32; N]; 2],
@@ -242,7 +243,6 @@ pub(super) fn next_event_diffuse<I: Isa>(
         return 0;
     };
     let zero = L::<I>::splat(isa, 0.0);
-    let v = Vertex::<L<I>>::load(isa, state);
     let (e_p, e_err, e_ng) = (es.p, es.p_err, es.ng);
     // `sample_direct_unoccluded`.
     let to_light = e_p.sub(v.p);
@@ -347,6 +347,7 @@ pub(super) fn scatter_diffuse<I: Isa>(
     settings: &PathSettings,
     bounces: u32,
     state: &mut PathLanes,
+    v: &Vertex<I::Eight>,
     lanes: u32,
     u_direction: [&[f32; N]; 2],
     u_roulette: &[f32; N],
@@ -355,7 +356,6 @@ pub(super) fn scatter_diffuse<I: Isa>(
     type L<I> = <I as Isa>::Eight;
     let lane = |x: f32| L::<I>::splat(isa, x);
     let (zero, one) = (lane(0.0), lane(1.0));
-    let v = Vertex::<L<I>>::load(isa, state);
     // `Diffuse::sample`: `warp::sample_cosine_hemisphere` (the concentric disk).
     let (ux, uy) = (
         L::<I>::new(isa, *u_direction[0]),
