@@ -149,3 +149,94 @@ fn batched_path_tracers_are_the_scalar_ones_bit_for_bit() {
         }
     }
 }
+
+/// The batched bake ([`bake_vertex_batched`]) against the one-sample-at-a-time bake
+/// ([`bake_vertex_by_sample`]): bit for bit the same vertex values for both estimators and both
+/// samplers, on every BSDF scene, at the scene's depth and a bounded one, for sample counts
+/// that fill no batch, part of the last one and whole ones, at mesh vertices exactly (on the
+/// edges where walls meet, as TinyRender bakes them) and stepped into a triangle.
+#[test]
+fn batched_bake_is_the_scalar_bake_bit_for_bit() {
+    use ember_kernel::integrator::{
+        bake_vertex_batched, bake_vertex_by_sample, BakeEstimator, BakePoint, BakeSamples,
+    };
+    use ember_kernel::{Vec2, Vec3};
+    for toml in scenes() {
+        let scene = LoadedScene::load(&toml).unwrap();
+        let data = &scene.data;
+        let view = data.view();
+        let (_, scene_path, _) = scene.path_settings().unwrap();
+        // A few vertices of every object, and one point with no normal (nothing to bake).
+        let mut points = vec![BakePoint {
+            p: Vec3::ZERO,
+            n: Vec3::ZERO,
+            material: 0,
+            uv: Vec2::ZERO,
+        }];
+        for o in &data.objects {
+            let step = (o.vertices.len() / 6).max(1);
+            for v in o.vertices.clone().step_by(step) {
+                let v = v as usize;
+                let (p, n) = (data.positions[v], data.normals[v]);
+                let uv = data.uvs.get(v).copied().unwrap_or(Vec2::ZERO);
+                points.push(BakePoint {
+                    p,
+                    n,
+                    material: o.material,
+                    uv,
+                });
+                // Stepped toward the centroid of the object's first triangle.
+                let c = view
+                    .triangle_vertices(o.triangles.start)
+                    .iter()
+                    .sum::<Vec3>()
+                    / 3.0;
+                points.push(BakePoint {
+                    p: p + (c - p) * 1e-3,
+                    n,
+                    material: o.material,
+                    uv,
+                });
+            }
+        }
+        let mut lit = 0;
+        for estimator in [BakeEstimator::Mis, BakeEstimator::Explicit] {
+            for sampler in [SamplerKind::ZSobol, SamplerKind::Independent] {
+                for max_depth in [scene_path.max_depth, 3] {
+                    let path = PathSettings {
+                        max_depth,
+                        ..scene_path
+                    };
+                    for (k, point) in points.iter().enumerate() {
+                        let per_vertex = [5, 13, 24][k % 3];
+                        let samples = BakeSamples {
+                            sampler,
+                            seed: 0xBA4E,
+                            per_vertex,
+                        };
+                        let key = k as u64;
+                        let scalar =
+                            bake_vertex_by_sample(&view, point, &path, estimator, &samples, key);
+                        let batched =
+                            bake_vertex_batched(&view, point, &path, estimator, &samples, key);
+                        assert_eq!(
+                            scalar.to_array().map(f32::to_bits),
+                            batched.to_array().map(f32::to_bits),
+                            "{}: {estimator:?} {sampler:?} maxDepth {max_depth}, point {k} \
+                             ({point:?}), {per_vertex} samples: {scalar} against {batched}",
+                            toml.display()
+                        );
+                        lit += usize::from(scalar.max_element() > 0.0);
+                    }
+                }
+            }
+        }
+        // The comparison must have seen light at most of the points.
+        assert!(
+            lit > 2 * 2 * 2 * points.len() / 2,
+            "{}: {lit} lit bakes of {}",
+            toml.display(),
+            8 * points.len()
+        );
+    }
+}

@@ -1,10 +1,15 @@
 //! Per-vertex precomputed global illumination (TinyRender's `gi` pass, FORMAT.md §6).
 
-use super::{dims, li_path_from_surface, PathSettings, PathStrategy};
-use crate::bsdf::SurfaceBsdf;
+use super::batch::{IndependentPixel, Job, Origin, Pixel, PixelSamples, BATCH};
+use super::path_lanes::PathLanes;
+use super::{dims, li_path_from_surface, PathSettings, PathStrategy, SampleResult};
+use crate::bsdf::{Bsdf, SurfaceBsdf};
 use crate::math::{gamma, warp, Frame};
-use crate::sampler::{mix64, IndependentSampler, Sampler, SamplerKind, ZSobolLayout};
+use crate::sampler::{
+    lanes_of, mix64, IndependentSampler, Sampler, SamplerKind, ZSobolLayout, ZSobolPixelSampler,
+};
 use crate::scene::{SceneView, SurfaceInteraction};
+use crate::simd::Isa;
 use crate::Rgb;
 use glam::{Vec2, Vec3};
 
@@ -80,6 +85,10 @@ pub struct BakePoint {
 ///
 /// The point is treated as exact input (a mesh vertex): its error bound is that of a value
 /// rounded once, and rays leave it offset along the normal by that bound.
+///
+/// The MIS bake runs [`BATCH`] samples at a time ([`bake_vertex_batched`], its diffuse
+/// vertices in SIMD lanes), which gives this value bit for bit (tests/tests/batched.rs);
+/// the explicit one runs one sample at a time ([`bake_vertex_by_sample`]).
 #[must_use]
 pub fn bake_vertex(
     scene: &SceneView<'_>,
@@ -89,22 +98,29 @@ pub fn bake_vertex(
     samples: &BakeSamples,
     key: u64,
 ) -> Rgb {
-    let n = point.n.normalize_or_zero();
-    let count = samples.per_vertex;
-    if n == Vec3::ZERO || count == 0 {
-        return Rgb::ZERO;
+    match estimator {
+        BakeEstimator::Mis => bake_vertex_batched(scene, point, settings, estimator, samples, key),
+        BakeEstimator::Explicit => {
+            bake_vertex_by_sample(scene, point, settings, estimator, samples, key)
+        }
     }
-    let frame = Frame::from_normal(n);
-    let material = scene.material(point.material);
-    let vertex = Vertex {
-        scene,
-        point,
-        n,
-        frame,
-        bsdf: SurfaceBsdf::new(material.bsdf(&scene.textures, || point.uv), frame, n),
-        settings,
-        strategy: estimator.strategy(),
+}
+
+/// [`bake_vertex`] one sample after another: the reference the batched bake is tested
+/// against.
+#[must_use]
+pub fn bake_vertex_by_sample(
+    scene: &SceneView<'_>,
+    point: &BakePoint,
+    settings: &PathSettings,
+    estimator: BakeEstimator,
+    samples: &BakeSamples,
+    key: u64,
+) -> Rgb {
+    let Some(vertex) = Vertex::new(scene, point, settings, estimator, samples) else {
+        return Rgb::ZERO;
     };
+    let count = samples.per_vertex;
     let mut sum = Rgb::ZERO;
     match samples.sampler {
         SamplerKind::Independent => {
@@ -112,18 +128,72 @@ pub fn bake_vertex(
                 sum += vertex.sample(&mut IndependentSampler::new(samples.seed, key, i));
             }
         }
-        // Each vertex its own Sobol' points, scrambled by a seed of its own: the vertices'
-        // estimates stay independent of one another, each stratified over its samples.
         SamplerKind::ZSobol => {
-            let vertex_seed = mix64(samples.seed ^ key.wrapping_mul(0x9E37_79B9_7F4A_7C15));
-            let mut sampler = ZSobolLayout::new(vertex_seed, count, 1, 1).pixel_sampler(0, 0);
+            let mut sampler = vertex_sobol(samples, key);
             for i in 0..count {
                 sampler.start_sample(i, 0);
                 sum += vertex.sample(&mut sampler);
             }
         }
     }
-    material.emission + sum / count as f32
+    vertex.material_emission + sum / count as f32
+}
+
+/// [`bake_vertex`] with [`BATCH`] samples at a time through the batched path tracer
+/// (`super::batch`), for any estimator: the same value bit for bit.
+#[must_use]
+pub fn bake_vertex_batched(
+    scene: &SceneView<'_>,
+    point: &BakePoint,
+    settings: &PathSettings,
+    estimator: BakeEstimator,
+    samples: &BakeSamples,
+    key: u64,
+) -> Rgb {
+    let Some(vertex) = Vertex::new(scene, point, settings, estimator, samples) else {
+        return Rgb::ZERO;
+    };
+    let count = samples.per_vertex;
+    let (mut independent, mut zsobol);
+    let pixel = match samples.sampler {
+        SamplerKind::Independent => {
+            independent = IndependentPixel::new(samples.seed, key);
+            Pixel::Independent(&mut independent)
+        }
+        SamplerKind::ZSobol => {
+            zsobol = vertex_sobol(samples, key);
+            Pixel::ZSobol(&mut zsobol)
+        }
+    };
+    let job = Job {
+        strategy: &vertex.strategy,
+        scene,
+        settings,
+        origin: &vertex,
+        packet_segments: 0,
+    };
+    let mut sum = Rgb::ZERO;
+    job.dispatch(pixel, 0, count, |r: &SampleResult| {
+        sum += finite_or_zero(r.l)
+    });
+    vertex.material_emission + sum / count as f32
+}
+
+/// Each vertex its own Sobol' points, scrambled by a seed of its own: the vertices' estimates
+/// stay independent of one another, each stratified over its samples.
+fn vertex_sobol(samples: &BakeSamples, key: u64) -> ZSobolPixelSampler {
+    let vertex_seed = mix64(samples.seed ^ key.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    ZSobolLayout::new(vertex_seed, samples.per_vertex, 1, 1).pixel_sampler(0, 0)
+}
+
+/// A sample's estimate, or zero if it is not finite.
+#[inline(always)]
+fn finite_or_zero(l: Rgb) -> Rgb {
+    if crate::math::is_finite(l) {
+        l
+    } else {
+        Rgb::ZERO
+    }
 }
 
 /// What every sample of a vertex shares.
@@ -132,18 +202,45 @@ struct Vertex<'s, 'a> {
     point: &'s BakePoint,
     n: Vec3,
     frame: Frame,
-    bsdf: SurfaceBsdf,
+    bsdf: Bsdf,
+    material_emission: Rgb,
     settings: &'s PathSettings,
     strategy: PathStrategy,
 }
 
-impl Vertex<'_, '_> {
-    /// One path's estimate of the scattered light (zero if it is not finite).
-    #[inline]
-    fn sample<S: Sampler>(&self, sampler: &mut S) -> Rgb {
+impl<'s, 'a> Vertex<'s, 'a> {
+    /// The vertex of `point`, or `None` if it has nothing to bake (no normal, no samples).
+    fn new(
+        scene: &'s SceneView<'a>,
+        point: &'s BakePoint,
+        settings: &'s PathSettings,
+        estimator: BakeEstimator,
+        samples: &BakeSamples,
+    ) -> Option<Self> {
+        let n = point.n.normalize_or_zero();
+        if n == Vec3::ZERO || samples.per_vertex == 0 {
+            return None;
+        }
+        let material = scene.material(point.material);
+        Some(Self {
+            scene,
+            point,
+            n,
+            frame: Frame::from_normal(n),
+            bsdf: material.bsdf(&scene.textures, || point.uv),
+            material_emission: material.emission,
+            settings,
+            strategy: estimator.strategy(),
+        })
+    }
+
+    /// The vertex seen along the view direction drawn from `u` (cosine-weighted about the
+    /// normal).
+    #[inline(always)]
+    fn interaction(&self, u: Vec2) -> SurfaceInteraction {
         let (frame, p) = (self.frame, self.point.p);
-        let view = warp::sample_cosine_hemisphere(dims::bake_view(sampler));
-        let si = SurfaceInteraction {
+        let view = warp::sample_cosine_hemisphere(u);
+        SurfaceInteraction {
             p,
             p_spawn: p,
             p_err: p.abs() * gamma(1),
@@ -154,20 +251,49 @@ impl Vertex<'_, '_> {
             triangle: u32::MAX,
             b1: 0.0,
             b2: 0.0,
-        };
+        }
+    }
+
+    /// One path's estimate of the scattered light (zero if it is not finite).
+    #[inline]
+    fn sample<S: Sampler>(&self, sampler: &mut S) -> Rgb {
+        let si = self.interaction(dims::bake_view(sampler));
         let l = li_path_from_surface(
             self.scene,
             si,
-            self.bsdf,
+            SurfaceBsdf::new(self.bsdf, self.frame, self.n),
             self.settings,
             &self.strategy,
             sampler,
             &mut 0,
         );
-        if crate::math::is_finite(l) {
-            l
-        } else {
-            Rgb::ZERO
+        finite_or_zero(l)
+    }
+}
+
+/// A bake's paths start at the vertex, seen along their view directions.
+impl Origin for &Vertex<'_, '_> {
+    const DIMENSIONS: u32 = dims::BAKE_VIEW;
+
+    #[inline(always)]
+    fn start<I: Isa, P: PixelSamples>(
+        &self,
+        _isa: I,
+        _scene: &SceneView<'_>,
+        pixel: &mut P,
+        indices: &[u32; BATCH],
+        used: u32,
+        state: &mut PathLanes,
+        _seen: &mut [Rgb; BATCH],
+        _results: &mut [SampleResult; BATCH],
+    ) -> u32 {
+        for lane in lanes_of(used) {
+            pixel.start_sample(indices[lane], 0);
+            state
+                .si
+                .set(lane, &self.interaction(dims::bake_view(pixel)));
+            state.start(lane, self.bsdf);
         }
+        used
     }
 }

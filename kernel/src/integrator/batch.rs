@@ -1,6 +1,8 @@
 //! The path tracers run [`BATCH`] samples of a pixel at a time, a bounce at a time: issue 14's
 //! lever 3 (many paths in SIMD lanes, the way Mitsuba 3's vectorised variants run), and what
-//! [`super::render_pixel`] runs for MIS path tracing. The paths' state is stored lane by lane
+//! [`super::render_pixel`] runs for MIS path tracing. The MIS bake runs the same driver from the
+//! vertex it bakes ([`super::bake_vertex_batched`]): a batch's paths start where its
+//! [`Origin`] puts them, at the camera or at the vertex. The paths' state is stored lane by lane
 //! ([`PathLanes`]: radiance, throughput and the vertex, field by field), and a bounce runs in
 //! SIMD lanes, with AVX where the CPU has it, for the paths at diffuse vertices under MIS
 //! (`super::path_lanes`: emitter sampling, the BSDF's value and pdf, the shadow ray, the
@@ -36,6 +38,9 @@
 //!   `ember render` (one thread): the Cornell box at 256², 64 spp, 3.54–3.59 s against the
 //!   one-path loop's 4.11–4.15 s; `cbox.obj` at 32 spp 14.6–14.7 s against 16.9–17.1 s, with
 //!   identical EXRs.
+//! - the bake through this driver (`ember bake`, the cubebox-sized scene of `bench/bake`, 2
+//!   threads, 3 alternating runs): 3.14–3.16 s against the one-sample loop's 3.81–3.89 s with
+//!   MIS's roulette, 5.48–5.60 against 6.43–6.52 with roulette off, identical PLY data.
 //!
 //! Still one lane at a time: the emitter search and the gathers of triangle data (a lane each),
 //! the sine and cosine of the disk warp (`libm`'s), the arrival at the next vertex (its
@@ -298,55 +303,167 @@ pub fn render_pixel_batched(
     let job = Job {
         strategy,
         scene,
-        camera,
         settings,
-        sampling,
-        x,
-        y,
+        origin: CameraOrigin {
+            camera,
+            x,
+            y,
+            packet: packet_segments > 0,
+        },
         packet_segments,
     };
-    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-    if let Some(avx) = crate::simd::Avx::detect() {
-        return avx.run(
-            #[inline(always)]
-            |avx| job.samples(avx, first, count, stats),
-        );
-    }
-    job.samples(crate::simd::Baseline, first, count, stats)
+    let (mut independent, mut zsobol);
+    let pixel = match sampling.kind {
+        SamplerKind::Independent => {
+            let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
+            independent = IndependentPixel::new(sampling.seed, pixel);
+            Pixel::Independent(&mut independent)
+        }
+        SamplerKind::ZSobol => {
+            zsobol = sampling.zsobol().pixel_sampler(x, y);
+            Pixel::ZSobol(&mut zsobol)
+        }
+    };
+    let mut stats = stats;
+    let add = |r: &SampleResult| {
+        stats.add(r.l);
+        stats.rays += u64::from(r.rays);
+    };
+    job.dispatch(pixel, first, count, add);
+    stats
 }
 
-/// What every batch of a pixel shares: the path tracer, the scene, the pixel, the packets.
-struct Job<'a, 'b> {
-    strategy: &'a PathStrategy,
-    scene: &'a SceneView<'b>,
+/// A pixel's sampler of either kind (chosen once per pixel, the lanes compiled for each).
+pub(super) enum Pixel<'p> {
+    Independent(&'p mut IndependentPixel),
+    ZSobol(&'p mut ZSobolPixelSampler),
+}
+
+/// What every batch of a pixel shares: the path tracer, the scene, where the paths start, the
+/// packets.
+pub(super) struct Job<'a, 'b, O> {
+    pub strategy: &'a PathStrategy,
+    pub scene: &'a SceneView<'b>,
+    pub settings: &'a PathSettings,
+    pub origin: O,
+    pub packet_segments: u32,
+}
+
+/// Where the paths of a batch start: at the camera ([`CameraOrigin`]), or at a vertex to bake.
+pub(super) trait Origin {
+    /// The dimensions a sample draws before its first bounce.
+    const DIMENSIONS: u32;
+
+    /// Starts the paths of the lanes of `used` (sample `indices[lane]`, `pixel` at dimension
+    /// 0 of it): their first vertex and BSDF in `state` ([`PathLanes::start`]), the emission
+    /// seen before it in `seen`, the rays traced in `results`. Returns the lanes that have a
+    /// first vertex.
+    #[allow(clippy::too_many_arguments)]
+    fn start<I: Isa, P: PixelSamples>(
+        &self,
+        isa: I,
+        scene: &SceneView<'_>,
+        pixel: &mut P,
+        indices: &[u32; BATCH],
+        used: u32,
+        state: &mut PathLanes,
+        seen: &mut [Rgb; BATCH],
+        results: &mut [SampleResult; BATCH],
+    ) -> u32;
+}
+
+/// Paths that start at the camera, through pixel `(x, y)`; their first rays traced as a packet
+/// if `packet`.
+pub(super) struct CameraOrigin<'a> {
     camera: &'a Camera,
-    settings: &'a PathSettings,
-    sampling: &'a Sampling,
     x: u32,
     y: u32,
-    packet_segments: u32,
+    packet: bool,
 }
 
-impl Job<'_, '_> {
-    /// Samples `first .. first + count`, [`BATCH`] at a time in the lanes of `isa`, added in
-    /// sample order to `stats`.
+impl Origin for CameraOrigin<'_> {
+    const DIMENSIONS: u32 = dims::CAMERA;
+
     #[inline(always)]
-    fn samples<I: Isa>(&self, isa: I, first: u32, count: u32, stats: PixelStats) -> PixelStats {
-        let sampling = self.sampling;
-        match sampling.kind {
-            SamplerKind::Independent => {
-                let pixel = u64::from(self.y) * u64::from(self.camera.width) + u64::from(self.x);
-                let mut pixel = IndependentPixel::new(sampling.seed, pixel);
-                self.samples_from(isa, &mut pixel, first, count, stats)
-            }
-            SamplerKind::ZSobol => {
-                let mut pixel = sampling.zsobol().pixel_sampler(self.x, self.y);
-                self.samples_from(isa, &mut pixel, first, count, stats)
-            }
+    fn start<I: Isa, P: PixelSamples>(
+        &self,
+        isa: I,
+        scene: &SceneView<'_>,
+        pixel: &mut P,
+        indices: &[u32; BATCH],
+        used: u32,
+        state: &mut PathLanes,
+        seen: &mut [Rgb; BATCH],
+        results: &mut [SampleResult; BATCH],
+    ) -> u32 {
+        let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
+        for lane in lanes_of(used) {
+            pixel.start_sample(indices[lane], 0);
+            camera_rays[lane] = self
+                .camera
+                .generate_ray(self.x, self.y, dims::camera(pixel));
+            results[lane].rays += 1;
+        }
+        // A pixel's camera rays are nearly one ray: a packet can walk the tree once for them.
+        let hits = if self.packet {
+            scene.intersect_packet(&camera_rays, used)
+        } else {
+            core::array::from_fn(|l| {
+                (used >> l & 1 != 0)
+                    .then(|| scene.intersect(&camera_rays[l]))
+                    .flatten()
+            })
+        };
+        let live = scene.interactions_in(isa, &camera_rays, &hits, used, &mut state.si);
+        for lane in lanes_of(live) {
+            // Emission seen from the camera, added to each path's radiance at the end as
+            // `li_path` adds it.
+            seen[lane] = scene.emitted(&state.si.get(lane));
+            state.start(lane, bsdf_of(scene, &state.si, lane));
+        }
+        live
+    }
+}
+
+impl<O: Origin> Job<'_, '_, O> {
+    /// Samples `first .. first + count` drawn from `pixel`, [`BATCH`] at a time in SIMD lanes
+    /// (AVX where the CPU has it), each given to `add` in sample order.
+    #[inline(always)]
+    pub fn dispatch(
+        &self,
+        pixel: Pixel<'_>,
+        first: u32,
+        count: u32,
+        mut add: impl FnMut(&SampleResult),
+    ) {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        if let Some(avx) = crate::simd::Avx::detect() {
+            return avx.run(
+                #[inline(always)]
+                |avx| self.samples(avx, pixel, first, count, &mut add),
+            );
+        }
+        self.samples(crate::simd::Baseline, pixel, first, count, &mut add);
+    }
+
+    /// [`Self::samples_from`] with the pixel's sampler.
+    #[inline(always)]
+    fn samples<I: Isa>(
+        &self,
+        isa: I,
+        pixel: Pixel<'_>,
+        first: u32,
+        count: u32,
+        add: &mut impl FnMut(&SampleResult),
+    ) {
+        match pixel {
+            Pixel::Independent(p) => self.samples_from(isa, p, first, count, add),
+            Pixel::ZSobol(p) => self.samples_from(isa, p, first, count, add),
         }
     }
 
-    /// [`Self::samples`] with the pixel's sampler.
+    /// Samples `first .. first + count` of `pixel`, [`BATCH`] at a time in the lanes of `isa`,
+    /// each given to `add` in sample order.
     #[inline(always)]
     fn samples_from<I: Isa, P: PixelSamples>(
         &self,
@@ -354,20 +471,18 @@ impl Job<'_, '_> {
         pixel: &mut P,
         first: u32,
         count: u32,
-        mut stats: PixelStats,
-    ) -> PixelStats {
+        add: &mut impl FnMut(&SampleResult),
+    ) {
         let end = first.saturating_add(count);
         let mut start = first;
         while start < end {
             let n = (end - start).min(BATCH as u32) as usize;
             let results = self.batch(isa, pixel, start, n);
             for r in &results[..n] {
-                stats.add(r.l);
-                stats.rays += u64::from(r.rays);
+                add(r);
             }
             start += n as u32;
         }
-        stats
     }
 
     /// Samples `start .. start + n` (`n ≤ BATCH`) of the pixel, one lane each.
@@ -382,42 +497,26 @@ impl Job<'_, '_> {
         let Self {
             strategy,
             scene,
-            camera,
             settings,
-            x,
-            y,
             packet_segments,
             ..
         } = *self;
         let indices: [u32; BATCH] = core::array::from_fn(|l| start.wrapping_add(l as u32));
         let mut results = [SampleResult::default(); BATCH];
-        // Emission seen from the camera, added to each path's radiance at the end as `li_path`
-        // adds it.
         let mut seen = [Rgb::ZERO; BATCH];
         let mut state = PathLanes::new();
-        let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
         let used = (1u32 << n) - 1;
-        for lane in 0..n {
-            pixel.start_sample(indices[lane], 0);
-            camera_rays[lane] = camera.generate_ray(x, y, dims::camera(pixel));
-            results[lane].rays += 1;
-        }
-        // A pixel's camera rays are nearly one ray: a packet can walk the tree once for them.
-        let hits = if packet_segments > 0 {
-            scene.intersect_packet(&camera_rays, used)
-        } else {
-            core::array::from_fn(|l| {
-                (used >> l & 1 != 0)
-                    .then(|| scene.intersect(&camera_rays[l]))
-                    .flatten()
-            })
-        };
-        let mut live = scene.interactions_in(isa, &camera_rays, &hits, used, &mut state.si);
+        let mut live = self.origin.start(
+            isa,
+            scene,
+            pixel,
+            &indices,
+            used,
+            &mut state,
+            &mut seen,
+            &mut results,
+        );
         let started = live;
-        for lane in lanes_of(live) {
-            seen[lane] = scene.emitted(&state.si.get(lane));
-            state.start(lane, bsdf_of(scene, &state.si, lane));
-        }
         // Diffuse vertices under MIS run their bounce in lanes; every other lane runs the
         // one-path loop's stages on its own.
         let in_lanes = *strategy == PathStrategy::MIS;
@@ -426,7 +525,7 @@ impl Job<'_, '_> {
             drawn: 0,
             values: [[0.0; BATCH]; dims::PER_BOUNCE as usize],
         };
-        let mut base = dims::CAMERA;
+        let mut base = O::DIMENSIONS;
         let mut bounces = 0u32;
         let mut us = [None; BATCH];
         let mut paths: [Option<PathState>; BATCH] = [None; BATCH];

@@ -30,7 +30,9 @@ mod light_tracer;
 mod path;
 mod path_lanes;
 
-pub use bake::{bake_vertex, BakeEstimator, BakePoint, BakeSamples};
+pub use bake::{
+    bake_vertex, bake_vertex_batched, bake_vertex_by_sample, BakeEstimator, BakePoint, BakeSamples,
+};
 pub use batch::{render_pixel_batched, IndependentPixel, PixelSamples, BATCH, PACKET_SEGMENTS};
 pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};
