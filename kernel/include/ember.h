@@ -65,7 +65,7 @@
 #define EMBER_MAX_MATERIALS 1024
 
 // The stack, in bytes, a thread must have to call ember's functions: 256 KiB. A rendering or
-// baking call uses up to about 120 KiB of it (the material table of `EMBER_MAX_MATERIALS`
+// baking call uses up to about 100 KiB of it (the material table of `EMBER_MAX_MATERIALS`
 // entries, 60 KiB, and MIS path tracing's eight paths in flight; BDPT's subpaths are in the
 // caller's scratch, not on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
 // exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack

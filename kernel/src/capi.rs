@@ -49,12 +49,13 @@
 //! textures beyond those.
 //!
 //! A thread that calls ember needs [`EMBER_STACK_BYTES`] (256 KiB) of stack. Measured: the
-//! deepest rendering call overwrites 122,112–123,424 bytes of a painted 256 KiB pthread stack
+//! deepest rendering call overwrites 103,896 bytes of a painted 256 KiB pthread stack
 //! (`tests/capi/cornell.c` runs its rendering threads on such stacks, x86_64 Linux, release
-//! build, glibc; 2026-12-07, since MIS path tracing runs eight paths at a time in SIMD lanes;
-//! 103,912 before, 83,456 when the table and the texel statistics were most of it): about
-//! 120 KiB, the material table and the texel statistics while the materials are converted
-//! (about 70 KiB) and the batched path tracer's frame being most of it. BDPT adds nothing: its two subpaths (24 KiB) live in a scratch the caller provides
+//! build, glibc; 2026-12-07, once the batched path tracer's baseline lanes, which an AVX CPU
+//! never runs, were kept out of line: 122,112–123,424 with their frame under the AVX one's;
+//! 103,912 before MIS ran batched, 83,456 when the table and the texel statistics were most of
+//! it): about 100 KiB, the material table and the texel statistics while the materials are
+//! converted (about 70 KiB) and the batched path tracer's frame being most of it. BDPT adds nothing: its two subpaths (24 KiB) live in a scratch the caller provides
 //! ([`ember_render_scratch_size`]), so a BDPT call needs the same stack as a path tracer's, and
 //! a thread can keep its scratch from call to call. The test fails if a call uses more than
 //! half of `EMBER_STACK_BYTES`; with 64 KiB stacks (over a guard page) it crashes. Main threads (8 MiB on Linux) and the default secondary
@@ -227,7 +228,7 @@ pub const EMBER_ERROR_ABI: i32 = 6;
 pub const EMBER_MAX_MATERIALS: u32 = 1024;
 
 /// The stack, in bytes, a thread must have to call ember's functions: 256 KiB. A rendering or
-/// baking call uses up to about 120 KiB of it (the material table of `EMBER_MAX_MATERIALS`
+/// baking call uses up to about 100 KiB of it (the material table of `EMBER_MAX_MATERIALS`
 /// entries, 60 KiB, and MIS path tracing's eight paths in flight; BDPT's subpaths are in the
 /// caller's scratch, not on the stack): measured by tests/capi/cornell.c, which renders on painted pthread stacks of
 /// exactly this size and fails if a call overwrites more than half of one (a 64 KiB stack

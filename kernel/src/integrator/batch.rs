@@ -443,7 +443,21 @@ impl<O: Origin> Job<'_, '_, O> {
                 |avx| self.samples(avx, pixel, first, count, &mut add),
             );
         }
-        self.samples(crate::simd::Baseline, pixel, first, count, &mut add);
+        self.samples_baseline(pixel, first, count, &mut add);
+    }
+
+    /// [`Self::samples`] in the baseline's lanes, out of line: inlined, its frame (the whole
+    /// batch's state) would sit under the AVX function's on every call, 16 KB of stack that an
+    /// embedder's threads would need for nothing (tests/capi/cornell.c measures the stack).
+    #[inline(never)]
+    fn samples_baseline(
+        &self,
+        pixel: Pixel<'_>,
+        first: u32,
+        count: u32,
+        add: &mut impl FnMut(&SampleResult),
+    ) {
+        self.samples(crate::simd::Baseline, pixel, first, count, add);
     }
 
     /// [`Self::samples_from`] with the pixel's sampler.
