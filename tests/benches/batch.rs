@@ -3,7 +3,8 @@
 //! whole film, one thread, on the project's Cornell box (32 triangles) and TinyRender's
 //! `cbox.obj` (32k), MIS with Sobol' samples (the renderer's default); the batched film with
 //! its rays traced one by one ([`PACKET_SEGMENTS`]) and as packets for the camera rays
-//! (`batched-packets-1`) and the first bounce's too (`batched-packets-2`).
+//! (`batched-packets-1`) and the first bounce's too (`batched-packets-2`); and the same film
+//! rendered in calls of 1, 2 and 4 samples per pixel (`calls/…`: a progressive view's passes).
 //!
 //!     cargo bench -p ember-tests --bench batch
 //!     cargo bench -p ember-tests --bench batch -- --quick
@@ -53,45 +54,51 @@ fn main() {
         let strategy = integrator.path_strategy().unwrap();
         let sampling = Sampling::new(SamplerKind::ZSobol, 7, SPP, WIDTH, HEIGHT);
         // `batched`: the segments traced as packets, or `None` for the one-path loop.
-        let film = |batched: Option<u32>| {
+        // The film's SPP samples per pixel in calls of `per_call` (consecutive ranges, as the
+        // passes of a progressive render call them).
+        let film_in_calls = |batched: Option<u32>, per_call: u32| {
             let mut sum = 0.0f32;
             for y in 0..HEIGHT {
                 for x in 0..WIDTH {
-                    let stats = if let Some(packet_segments) = batched {
-                        render_pixel_batched(
-                            &strategy,
-                            &view,
-                            &camera,
-                            &path,
-                            &sampling,
-                            x,
-                            y,
-                            0,
-                            SPP,
-                            PixelStats::default(),
-                            packet_segments,
-                        )
-                    } else {
-                        render_pixel_by_sample(
-                            integrator,
-                            &view,
-                            &camera,
-                            &path,
-                            &sampling,
-                            x,
-                            y,
-                            0,
-                            SPP,
-                            PixelStats::default(),
-                            None,
-                            &mut NoSplats,
-                        )
-                    };
+                    let mut stats = PixelStats::default();
+                    for first in (0..SPP).step_by(per_call as usize) {
+                        stats = if let Some(packet_segments) = batched {
+                            render_pixel_batched(
+                                &strategy,
+                                &view,
+                                &camera,
+                                &path,
+                                &sampling,
+                                x,
+                                y,
+                                first,
+                                per_call,
+                                stats,
+                                packet_segments,
+                            )
+                        } else {
+                            render_pixel_by_sample(
+                                integrator,
+                                &view,
+                                &camera,
+                                &path,
+                                &sampling,
+                                x,
+                                y,
+                                first,
+                                per_call,
+                                stats,
+                                None,
+                                &mut NoSplats,
+                            )
+                        };
+                    }
                     sum += stats.sum.x;
                 }
             }
             sum
         };
+        let film = |batched: Option<u32>| film_in_calls(batched, SPP);
         let runs = [
             ("scalar", None),
             ("batched", Some(PACKET_SEGMENTS)),
@@ -106,6 +113,23 @@ fn main() {
         group.throughput(Throughput::Elements(u64::from(WIDTH * HEIGHT * SPP)));
         for (what, batched) in runs {
             group.bench_function(what, |b| b.iter(|| black_box(film(batched))));
+        }
+        group.finish();
+        // Calls of fewer samples than a batch holds (a progressive view's passes, 1 spp
+        // previews): the batched driver's lanes run part empty.
+        let mut group = c.benchmark_group(format!("calls/{name}"));
+        group.throughput(Throughput::Elements(u64::from(WIDTH * HEIGHT * SPP)));
+        for per_call in [1, 2, 4] {
+            for (what, batched) in [("scalar", None), ("batched", Some(PACKET_SEGMENTS))] {
+                assert_eq!(
+                    film_in_calls(batched, per_call).to_bits(),
+                    expected,
+                    "{name} {what} in calls of {per_call}"
+                );
+                group.bench_function(format!("{what}-{per_call}"), |b| {
+                    b.iter(|| black_box(film_in_calls(batched, per_call)))
+                });
+            }
         }
         group.finish();
     }

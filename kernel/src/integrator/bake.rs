@@ -296,4 +296,18 @@ impl Origin for &Vertex<'_, '_> {
         }
         used
     }
+
+    #[inline(always)]
+    fn one<P: PixelSamples>(
+        &self,
+        _strategy: &PathStrategy,
+        _scene: &SceneView<'_>,
+        _settings: &PathSettings,
+        pixel: &mut P,
+    ) -> SampleResult {
+        SampleResult {
+            l: self.sample(pixel),
+            rays: 0,
+        }
+    }
 }

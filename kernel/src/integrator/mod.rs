@@ -33,7 +33,9 @@ mod path_lanes;
 pub use bake::{
     bake_vertex, bake_vertex_batched, bake_vertex_by_sample, BakeEstimator, BakePoint, BakeSamples,
 };
-pub use batch::{render_pixel_batched, IndependentPixel, PixelSamples, BATCH, PACKET_SEGMENTS};
+pub use batch::{
+    render_pixel_batched, IndependentPixel, PixelSamples, BATCH, MIN_LANES, PACKET_SEGMENTS,
+};
 pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};
 pub use light_tracer::{light_trace, ray_to_camera};
@@ -435,8 +437,9 @@ impl PixelStats {
 /// renders agree with one-shot renders, whatever the threads or tiles.
 ///
 /// MIS path tracing runs [`BATCH`] samples at a time ([`render_pixel_batched`], diffuse
-/// vertices in SIMD lanes), which gives these sums bit for bit (tests/tests/batched.rs) in
-/// less time; the other integrators run one sample at a time ([`render_pixel_by_sample`]).
+/// vertices in SIMD lanes; a remainder of fewer than [`MIN_LANES`] samples one at a time),
+/// which gives these sums bit for bit (tests/tests/batched.rs) in less time; the other
+/// integrators run one sample at a time ([`render_pixel_by_sample`]).
 #[allow(clippy::too_many_arguments)]
 #[must_use]
 pub fn render_pixel<K: BdptSink>(
