@@ -5,7 +5,7 @@ use crate::image::Image;
 use crate::splats::{resolve, AtomicSplats, StrategyFilms, StrategySink};
 use ember_kernel::camera::Camera;
 use ember_kernel::integrator::{
-    render_pixel, BdptScratch, BdptSink, Integrator, PathSettings, PixelStats,
+    render_pixel, render_row, BdptScratch, BdptSink, Integrator, PathSettings, PixelStats,
 };
 use ember_kernel::sampler::{SamplerKind, Sampling};
 use ember_kernel::scene::SceneView;
@@ -304,31 +304,28 @@ impl TileJob<'_, '_> {
         let (w, h, tile) = (camera.width, camera.height, s.tile.max(1));
         let sampling = s.sampling(w, h);
         let (x0, y0) = self.corner;
-        let mut out = Vec::with_capacity(self.acc.len());
-        for y in y0..(y0 + tile).min(h) {
-            for x in x0..(x0 + tile).min(w) {
-                // At 0 spp the sums may hold a previous accumulation (see
-                // `Progressive::restart`): the first pass starts from zero.
-                let sums = if self.first == 0 {
-                    PixelStats::default()
-                } else {
-                    self.acc[out.len()]
-                };
-                out.push(render_pixel(
-                    s.integrator,
-                    self.scene,
-                    camera,
-                    &s.path,
-                    &sampling,
-                    x,
-                    y,
-                    self.first,
-                    self.count,
-                    sums,
-                    scratch.as_deref_mut(),
-                    sink,
-                ));
-            }
+        let row = ((x0 + tile).min(w) - x0) as usize;
+        // At 0 spp the sums may hold a previous accumulation (see `Progressive::restart`): the
+        // first pass starts from zero.
+        let mut out = if self.first == 0 {
+            vec![PixelStats::default(); self.acc.len()]
+        } else {
+            self.acc.to_vec()
+        };
+        for (y, sums) in (y0..(y0 + tile).min(h)).zip(out.chunks_mut(row)) {
+            render_row(
+                s.integrator,
+                self.scene,
+                camera,
+                &s.path,
+                &sampling,
+                (x0, y),
+                self.first,
+                self.count,
+                sums,
+                scratch.as_deref_mut(),
+                sink,
+            );
         }
         out
     }

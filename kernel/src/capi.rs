@@ -182,7 +182,7 @@ use crate::emitter::{build_emitter_table, EmitterTableError};
 use crate::geometry::{TriangleGroup, GROUP_WIDTH};
 use crate::integrator::bdpt::{self, Vertex, CAMERA_PATH_VERTICES, LIGHT_PATH_VERTICES};
 use crate::integrator::{
-    bake_vertex, render_pixel, BakeEstimator, BakePoint, BakeSamples, BdptScratch, BdptSink,
+    bake_vertex, render_row, BakeEstimator, BakePoint, BakeSamples, BdptScratch, BdptSink,
     Integrator, MisHeuristic, PathSettings, PixelStats,
 };
 use crate::material::{PhongParams, Reflectance, Surface};
@@ -1577,24 +1577,34 @@ impl TileJob<'_> {
         sink: &mut K,
         value: impl Fn(&PixelStats) -> Rgb,
     ) {
-        for (i, px) in out.chunks_exact_mut(3).enumerate() {
-            let x = self.x0 + (i % self.w as usize) as u32;
-            let y = self.y0 + (i / self.w as usize) as u32;
-            let stats = render_pixel(
-                self.integrator,
-                &self.view,
-                &self.camera,
-                &self.path,
-                &self.sampling,
-                x,
-                y,
-                0,
-                self.spp,
-                PixelStats::default(),
-                scratch.as_deref_mut(),
-                sink,
-            );
-            px.copy_from_slice(&value(&stats).to_array());
+        // Runs of up to `RUN` pixels of a row at a time (`render_row`: a few samples per pixel
+        // fill the lanes with neighbouring pixels'), their sums on the stack.
+        const RUN: usize = 16;
+        let w = self.w as usize;
+        if w == 0 {
+            return;
+        }
+        for (row, y) in out.chunks_exact_mut(3 * w).zip(self.y0..) {
+            for (run, x) in row.chunks_mut(3 * RUN).zip((self.x0..).step_by(RUN)) {
+                let mut stats = [PixelStats::default(); RUN];
+                let stats = &mut stats[..run.len() / 3];
+                render_row(
+                    self.integrator,
+                    &self.view,
+                    &self.camera,
+                    &self.path,
+                    &self.sampling,
+                    (x, y),
+                    0,
+                    self.spp,
+                    stats,
+                    scratch.as_deref_mut(),
+                    sink,
+                );
+                for (px, s) in run.chunks_exact_mut(3).zip(stats.iter()) {
+                    px.copy_from_slice(&value(s).to_array());
+                }
+            }
         }
     }
 }
@@ -2181,6 +2191,7 @@ unsafe fn ember_bake_vertices_impl(
 #[allow(clippy::undocumented_unsafe_blocks)]
 mod tests {
     use super::*;
+    use crate::integrator::render_pixel;
     use core::mem::size_of;
     use core::ptr::{null, null_mut};
 

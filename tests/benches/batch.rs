@@ -4,7 +4,9 @@
 //! `cbox.obj` (32k), MIS with Sobol' samples (the renderer's default); the batched film with
 //! its rays traced one by one ([`PACKET_SEGMENTS`]) and as packets for the camera rays
 //! (`batched-packets-1`) and the first bounce's too (`batched-packets-2`); and the same film
-//! rendered in calls of 1, 2 and 4 samples per pixel (`calls/…`: a progressive view's passes).
+//! rendered in calls of 1, 2 and 4 samples per pixel (`calls/…`: a progressive view's passes),
+//! pixel by pixel and a row at a time (`rows-…`, [`render_row`]: the lanes filled with
+//! neighbouring pixels' samples).
 //!
 //!     cargo bench -p ember-tests --bench batch
 //!     cargo bench -p ember-tests --bench batch -- --quick
@@ -12,7 +14,8 @@
 use criterion::{Criterion, Throughput};
 use ember_cli::LoadedScene;
 use ember_kernel::integrator::{
-    render_pixel_batched, render_pixel_by_sample, Integrator, PixelStats, PACKET_SEGMENTS,
+    render_pixel_batched, render_pixel_by_sample, render_row, Integrator, PixelStats,
+    PACKET_SEGMENTS,
 };
 use ember_kernel::sampler::{SamplerKind, Sampling};
 use ember_kernel::splat::NoSplats;
@@ -98,6 +101,33 @@ fn main() {
             }
             sum
         };
+        // The same calls row by row ([`render_row`]: a call of fewer samples than
+        // `MIN_LANES` fills its lanes with neighbouring pixels' samples).
+        let rows_in_calls = |per_call: u32| {
+            let mut sum = 0.0f32;
+            for y in 0..HEIGHT {
+                let mut stats = vec![PixelStats::default(); WIDTH as usize];
+                for first in (0..SPP).step_by(per_call as usize) {
+                    render_row(
+                        integrator,
+                        &view,
+                        &camera,
+                        &path,
+                        &sampling,
+                        (0, y),
+                        first,
+                        per_call,
+                        &mut stats,
+                        None,
+                        &mut NoSplats,
+                    );
+                }
+                for s in &stats {
+                    sum += s.sum.x;
+                }
+            }
+            sum
+        };
         let film = |batched: Option<u32>| film_in_calls(batched, SPP);
         let runs = [
             ("scalar", None),
@@ -130,6 +160,14 @@ fn main() {
                     b.iter(|| black_box(film_in_calls(batched, per_call)))
                 });
             }
+            assert_eq!(
+                rows_in_calls(per_call).to_bits(),
+                expected,
+                "{name} rows in calls of {per_call}"
+            );
+            group.bench_function(format!("rows-{per_call}"), |b| {
+                b.iter(|| black_box(rows_in_calls(per_call)))
+            });
         }
         group.finish();
     }

@@ -241,3 +241,88 @@ fn batched_bake_is_the_scalar_bake_bit_for_bit() {
         );
     }
 }
+
+/// Runs of a row ([`render_row`]: under MIS, a call of fewer samples per pixel than
+/// [`MIN_LANES`] fills its batches with neighbouring pixels' samples) against the one-path
+/// loop pixel by pixel: bit for bit the same sums and ray counts, for both samplers, films
+/// laid out for 1 to 4 and 32 spp (odd and even powers of two, so both forms of the bottom
+/// Sobol' digit), calls of 1 to 4 samples and of more, runs of one pixel, of a whole row and
+/// of rows cut into runs that start anywhere, with sample indices past the layout (as an
+/// embedder may ask).
+#[test]
+fn row_runs_are_the_scalar_pixels_bit_for_bit() {
+    use ember_kernel::integrator::{render_row, MIN_LANES};
+    assert_eq!(MIN_LANES, 5);
+    let integrator = Integrator::PathMis;
+    for toml in scenes() {
+        let scene = LoadedScene::load(&toml).unwrap();
+        let view = scene.data.view();
+        let (_, path, _) = scene.path_settings().unwrap();
+        let (w, h) = (13, 5);
+        let camera = scene.camera(w, h);
+        for kind in [SamplerKind::ZSobol, SamplerKind::Independent] {
+            for layout_spp in [1, 2, 3, 4, 32] {
+                let sampling = Sampling::new(kind, 0x5EED, layout_spp, w, h);
+                // Consecutive calls (first, count): the last one runs past a small layout.
+                let calls = [(0, 1), (1, 2), (3, 4), (7, 3), (10, 6)];
+                // Runs of each row: (first x, pixels).
+                for runs in [vec![(0, 13)], vec![(0, 1), (1, 5), (6, 7)], vec![(2, 3)]] {
+                    let what = format!(
+                        "{} {kind:?} layout {layout_spp} spp, runs {runs:?}",
+                        toml.display()
+                    );
+                    for y in 0..h {
+                        for &(x0, n) in &runs {
+                            let mut row = vec![PixelStats::default(); n as usize];
+                            let mut scalar = vec![PixelStats::default(); n as usize];
+                            for (first, count) in calls {
+                                render_row(
+                                    integrator,
+                                    &view,
+                                    &camera,
+                                    &path,
+                                    &sampling,
+                                    (x0, y),
+                                    first,
+                                    count,
+                                    &mut row,
+                                    None,
+                                    &mut NoSplats,
+                                );
+                                for (k, s) in scalar.iter_mut().enumerate() {
+                                    *s = render_pixel_by_sample(
+                                        integrator,
+                                        &view,
+                                        &camera,
+                                        &path,
+                                        &sampling,
+                                        x0 + k as u32,
+                                        y,
+                                        first,
+                                        count,
+                                        *s,
+                                        None,
+                                        &mut NoSplats,
+                                    );
+                                }
+                                for (k, (a, b)) in row.iter().zip(&scalar).enumerate() {
+                                    assert_eq!(
+                                        stats_bits(b),
+                                        stats_bits(a),
+                                        "{what}: pixel ({}, {y}) after samples {first}..{}",
+                                        x0 + k as u32,
+                                        first + count
+                                    );
+                                }
+                            }
+                            assert!(
+                                scalar.iter().all(|s| s.rays >= 16),
+                                "{what}: no rays traced"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,6 +1,6 @@
 //! Per-vertex precomputed global illumination (TinyRender's `gi` pass, FORMAT.md §6).
 
-use super::batch::{IndependentPixel, Job, Origin, Pixel, PixelSamples, BATCH};
+use super::batch::{IndependentPixels, Job, Origin, Pixel, PixelSamples, BATCH};
 use super::path_lanes::PathLanes;
 use super::{dims, li_path_from_surface, PathSettings, PathStrategy, SampleResult};
 use crate::bsdf::{Bsdf, SurfaceBsdf};
@@ -157,7 +157,7 @@ pub fn bake_vertex_batched(
     let (mut independent, mut zsobol);
     let pixel = match samples.sampler {
         SamplerKind::Independent => {
-            independent = IndependentPixel::new(samples.seed, key);
+            independent = IndependentPixels::new(samples.seed, key);
             Pixel::Independent(&mut independent)
         }
         SamplerKind::ZSobol => {
@@ -300,6 +300,7 @@ impl Origin for &Vertex<'_, '_> {
     #[inline(always)]
     fn one<P: PixelSamples>(
         &self,
+        _index: u32,
         _strategy: &PathStrategy,
         _scene: &SceneView<'_>,
         _settings: &PathSettings,

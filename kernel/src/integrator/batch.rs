@@ -57,7 +57,8 @@ use crate::camera::Camera;
 use crate::geometry::Ray;
 use crate::math::SolidAnglePdf;
 use crate::sampler::{
-    lanes_of, IndependentSampler, Sampler, SamplerKind, Sampling, ZSobolPixelSampler,
+    lanes_of, IndependentSampler, Sampler, SamplerKind, Sampling, ZSobolLayout, ZSobolPixelSampler,
+    ZSobolSampler,
 };
 use crate::scene::{Hit, SceneView};
 use crate::simd::Isa;
@@ -128,26 +129,74 @@ impl PixelSamples for ZSobolPixelSampler {
 
 const _: () = assert!(BATCH == crate::sampler::DRAW_LANES);
 
-/// The independent sampler of one pixel (its linear index), restarted per sample.
+/// How a driver's sample numbers map to pixels and samples: number `j` is sample
+/// `first + j % count` of pixel `j / count` of a run of pixels (the samples
+/// `first .. first + count` of each pixel, pixel after pixel), or, for [`Self::ONE_PIXEL`],
+/// sample `j` of the only pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Span {
+    first: u32,
+    count: u32,
+}
+
+impl Span {
+    /// Number `j` is sample `j` of one pixel.
+    pub const ONE_PIXEL: Self = Self {
+        first: 0,
+        count: u32::MAX,
+    };
+
+    /// Samples `first .. first + count` (`count ≥ 1`) of each pixel of a run.
+    #[must_use]
+    pub fn run(first: u32, count: u32) -> Self {
+        Self {
+            first,
+            count: count.max(1),
+        }
+    }
+
+    /// The pixel (counted from the run's first) and the sample of number `j`.
+    #[inline(always)]
+    #[must_use]
+    pub fn locate(self, j: u32) -> (u32, u32) {
+        if self.count == u32::MAX {
+            // No division for a lone pixel's numbers, which are its sample indices.
+            return (0, j);
+        }
+        (j / self.count, self.first.wrapping_add(j % self.count))
+    }
+}
+
+/// The independent sampler of a run of pixels with consecutive linear indices from `pixel`
+/// on (one pixel: [`Self::new`]), restarted per sample.
 #[derive(Clone, Copy, Debug)]
-pub struct IndependentPixel {
+pub struct IndependentPixels {
     seed: u64,
     pixel: u64,
+    span: Span,
     sampler: IndependentSampler,
 }
 
-impl IndependentPixel {
+impl IndependentPixels {
+    /// The samples of pixel `pixel`, numbered by their index.
     #[must_use]
     pub fn new(seed: u64, pixel: u64) -> Self {
+        Self::run(seed, pixel, Span::ONE_PIXEL)
+    }
+
+    /// The samples of the pixels `pixel, pixel + 1, …` numbered as `span` says.
+    #[must_use]
+    pub fn run(seed: u64, pixel: u64, span: Span) -> Self {
         Self {
             seed,
             pixel,
+            span,
             sampler: IndependentSampler::new(seed, pixel, 0),
         }
     }
 }
 
-impl Sampler for IndependentPixel {
+impl Sampler for IndependentPixels {
     #[inline(always)]
     fn next_1d(&mut self) -> f32 {
         self.sampler.next_1d()
@@ -162,11 +211,91 @@ impl Sampler for IndependentPixel {
     }
 }
 
-impl PixelSamples for IndependentPixel {
+impl PixelSamples for IndependentPixels {
     #[inline(always)]
     fn start_sample(&mut self, index: u32, dimension: u32) {
-        self.sampler = IndependentSampler::new(self.seed, self.pixel, index);
+        let (k, sample) = self.span.locate(index);
+        self.sampler = IndependentSampler::new(self.seed, self.pixel + u64::from(k), sample);
         self.sampler.set_dimension(dimension);
+    }
+}
+
+/// The Sobol' samples of a run of pixels of one row, from `(x, y)` on, numbered as `span`
+/// says: for a few samples of each of several pixels, where [`ZSobolPixelSampler`]'s memo of
+/// one pixel's digits would serve a few draws; neighbouring pixels share most digits' permutations
+/// instead ([`ZSobolLayout::draw_lanes_at`]).
+#[derive(Clone, Copy, Debug)]
+pub struct ZSobolPixels {
+    layout: ZSobolLayout,
+    x: u32,
+    y: u32,
+    span: Span,
+    sampler: ZSobolSampler,
+}
+
+impl ZSobolPixels {
+    #[must_use]
+    pub fn run(layout: &ZSobolLayout, x: u32, y: u32, span: Span) -> Self {
+        Self {
+            layout: *layout,
+            x,
+            y,
+            span,
+            sampler: layout.sampler_at(x, y, 0, 0),
+        }
+    }
+
+    /// The Morton index of number `j`.
+    #[inline(always)]
+    fn morton_index(&self, j: u32) -> u64 {
+        let (k, sample) = self.span.locate(j);
+        self.layout
+            .morton_index(self.x.wrapping_add(k), self.y, sample)
+    }
+}
+
+impl Sampler for ZSobolPixels {
+    #[inline(always)]
+    fn next_1d(&mut self) -> f32 {
+        self.sampler.next_1d()
+    }
+    #[inline(always)]
+    fn next_2d(&mut self) -> Vec2 {
+        self.sampler.next_2d()
+    }
+    #[inline(always)]
+    fn set_dimension(&mut self, d: u32) {
+        self.sampler.set_dimension(d);
+    }
+    #[inline(always)]
+    fn dimension(&self) -> u32 {
+        self.sampler.dimension()
+    }
+}
+
+impl PixelSamples for ZSobolPixels {
+    #[inline(always)]
+    fn start_sample(&mut self, index: u32, dimension: u32) {
+        let (k, sample) = self.span.locate(index);
+        self.sampler = self
+            .layout
+            .sampler_at(self.x.wrapping_add(k), self.y, sample, dimension);
+    }
+
+    /// Computed together ([`ZSobolLayout::draw_lanes_at`]).
+    #[inline(always)]
+    fn draw_lanes<const N: usize>(
+        &mut self,
+        dimension: u32,
+        indices: &[u32; BATCH],
+        live: u32,
+        out: &mut [[f32; BATCH]; N],
+    ) {
+        let mut mortons = [0u64; BATCH];
+        for lane in lanes_of(live) {
+            mortons[lane] = self.morton_index(indices[lane]);
+        }
+        self.layout.draw_lanes_at(&mortons, dimension, live, out);
     }
 }
 
@@ -311,23 +440,19 @@ pub fn render_pixel_batched(
     stats: PixelStats,
     packet_segments: u32,
 ) -> PixelStats {
-    let job = Job {
+    let job = Job::from_camera(
         strategy,
         scene,
+        camera,
         settings,
-        origin: CameraOrigin {
-            camera,
-            x,
-            y,
-            packet: packet_segments > 0,
-        },
+        (x, y),
+        Span::ONE_PIXEL,
         packet_segments,
-    };
+    );
     let (mut independent, mut zsobol);
     let pixel = match sampling.kind {
         SamplerKind::Independent => {
-            let pixel = u64::from(y) * u64::from(camera.width) + u64::from(x);
-            independent = IndependentPixel::new(sampling.seed, pixel);
+            independent = IndependentPixels::new(sampling.seed, pixel_number(camera, x, y));
             Pixel::Independent(&mut independent)
         }
         SamplerKind::ZSobol => {
@@ -344,10 +469,69 @@ pub fn render_pixel_batched(
     stats
 }
 
-/// A pixel's sampler of either kind (chosen once per pixel, the lanes compiled for each).
+/// Renders samples `first .. first + count` of each pixel `(x + k, y)` with MIS path tracing
+/// and adds them in sample order to `stats[k]`: what [`render_pixel_batched`] gives each
+/// pixel, bit for bit, for calls of fewer samples per pixel than fill a batch's lanes
+/// ([`MIN_LANES`]: a progressive view's passes, previews, renders of 1 to 4 spp). A batch holds
+/// the samples of neighbouring pixels, pixel after pixel, so that its lanes run full.
+#[allow(clippy::too_many_arguments)]
+pub fn render_run_batched(
+    strategy: &PathStrategy,
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    settings: &PathSettings,
+    sampling: &Sampling,
+    (x, y): (u32, u32),
+    first: u32,
+    count: u32,
+    stats: &mut [PixelStats],
+) {
+    let Some(numbers) = u32::try_from(stats.len())
+        .ok()
+        .and_then(|n| n.checked_mul(count))
+    else {
+        // More samples than a call numbers: pixel by pixel.
+        for (k, s) in stats.iter_mut().enumerate() {
+            let x = x.wrapping_add(k as u32);
+            *s = render_pixel_batched(
+                strategy, scene, camera, settings, sampling, x, y, first, count, *s, 0,
+            );
+        }
+        return;
+    };
+    let span = Span::run(first, count);
+    let job = Job::from_camera(strategy, scene, camera, settings, (x, y), span, 0);
+    let (mut independent, mut zsobol);
+    let pixel = match sampling.kind {
+        SamplerKind::Independent => {
+            independent = IndependentPixels::run(sampling.seed, pixel_number(camera, x, y), span);
+            Pixel::Independent(&mut independent)
+        }
+        SamplerKind::ZSobol => {
+            zsobol = ZSobolPixels::run(sampling.zsobol(), x, y, span);
+            Pixel::ZSobolRun(&mut zsobol)
+        }
+    };
+    let mut j = 0u32;
+    let add = |r: &SampleResult| {
+        let s = &mut stats[(j / count) as usize];
+        s.add(r.l);
+        s.rays += u64::from(r.rays);
+        j += 1;
+    };
+    job.dispatch(pixel, 0, numbers, add);
+}
+
+/// The independent sampler's number of pixel `(x, y)` ([`super::render_sample`]'s).
+fn pixel_number(camera: &Camera, x: u32, y: u32) -> u64 {
+    u64::from(y) * u64::from(camera.width) + u64::from(x)
+}
+
+/// A batch's sampler (chosen once per call, the lanes compiled for each).
 pub(super) enum Pixel<'p> {
-    Independent(&'p mut IndependentPixel),
+    Independent(&'p mut IndependentPixels),
     ZSobol(&'p mut ZSobolPixelSampler),
+    ZSobolRun(&'p mut ZSobolPixels),
 }
 
 /// What every batch of a pixel shares: the path tracer, the scene, where the paths start, the
@@ -382,11 +566,12 @@ pub(super) trait Origin {
         results: &mut [SampleResult; BATCH],
     ) -> u32;
 
-    /// The sample `pixel` was started at (dimension 0) traced alone by the one-path loop: what
-    /// its lane would compute, for the samples too few to fill a batch's lanes
-    /// ([`MIN_LANES`]).
+    /// Sample `index`, which `pixel` was started at (dimension 0), traced alone by the
+    /// one-path loop: what its lane would compute, for the samples too few to fill a batch's
+    /// lanes ([`MIN_LANES`]).
     fn one<P: PixelSamples>(
         &self,
+        index: u32,
         strategy: &PathStrategy,
         scene: &SceneView<'_>,
         settings: &PathSettings,
@@ -394,13 +579,52 @@ pub(super) trait Origin {
     ) -> SampleResult;
 }
 
-/// Paths that start at the camera, through pixel `(x, y)`; their first rays traced as a packet
-/// if `packet`.
+/// Paths that start at the camera, through the pixels `(x + k, y)`, a sample's pixel `k` as
+/// `span` numbers it; their first rays traced as a packet if `packet`.
 pub(super) struct CameraOrigin<'a> {
     camera: &'a Camera,
     x: u32,
     y: u32,
+    span: Span,
     packet: bool,
+}
+
+impl CameraOrigin<'_> {
+    /// The camera ray of sample number `j`, `pixel` started at it.
+    #[inline(always)]
+    fn ray<P: PixelSamples>(&self, j: u32, pixel: &mut P) -> Ray {
+        let (k, _) = self.span.locate(j);
+        self.camera
+            .generate_ray(self.x.wrapping_add(k), self.y, dims::camera(pixel))
+    }
+}
+
+impl<'a, 'b> Job<'a, 'b, CameraOrigin<'a>> {
+    /// Paths from the camera through the pixels `(x + k, y)` numbered by `span`, their first
+    /// `packet_segments` segments traced as packets.
+    fn from_camera(
+        strategy: &'a PathStrategy,
+        scene: &'a SceneView<'b>,
+        camera: &'a Camera,
+        settings: &'a PathSettings,
+        (x, y): (u32, u32),
+        span: Span,
+        packet_segments: u32,
+    ) -> Self {
+        Self {
+            strategy,
+            scene,
+            settings,
+            origin: CameraOrigin {
+                camera,
+                x,
+                y,
+                span,
+                packet: packet_segments > 0,
+            },
+            packet_segments,
+        }
+    }
 }
 
 impl Origin for CameraOrigin<'_> {
@@ -421,9 +645,7 @@ impl Origin for CameraOrigin<'_> {
         let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
         for lane in lanes_of(used) {
             pixel.start_sample(indices[lane], 0);
-            camera_rays[lane] = self
-                .camera
-                .generate_ray(self.x, self.y, dims::camera(pixel));
+            camera_rays[lane] = self.ray(indices[lane], pixel);
             results[lane].rays += 1;
         }
         // A pixel's camera rays are nearly one ray: a packet can walk the tree once for them.
@@ -449,14 +671,13 @@ impl Origin for CameraOrigin<'_> {
     #[inline(always)]
     fn one<P: PixelSamples>(
         &self,
+        index: u32,
         strategy: &PathStrategy,
         scene: &SceneView<'_>,
         settings: &PathSettings,
         pixel: &mut P,
     ) -> SampleResult {
-        let ray = self
-            .camera
-            .generate_ray(self.x, self.y, dims::camera(pixel));
+        let ray = self.ray(index, pixel);
         let mut rays = 0;
         let l = li_path(scene, &ray, settings, strategy, pixel, &mut rays);
         SampleResult { l, rays }
@@ -474,44 +695,47 @@ impl<O: Origin> Job<'_, '_, O> {
         count: u32,
         mut add: impl FnMut(&SampleResult),
     ) {
+        match pixel {
+            Pixel::Independent(p) => self.dispatch_with(p, first, count, &mut add),
+            Pixel::ZSobol(p) => self.dispatch_with(p, first, count, &mut add),
+            Pixel::ZSobolRun(p) => self.dispatch_with(p, first, count, &mut add),
+        }
+    }
+
+    /// [`Self::dispatch`] for one sampler type: each type's lanes are compiled in a function of
+    /// their own. In one function for all three samplers, LLVM left AVX intrinsics out of line
+    /// (`_mm256_mul_ps` as a call: the batched film took 67 ms instead of 55).
+    #[inline(always)]
+    fn dispatch_with<P: PixelSamples>(
+        &self,
+        pixel: &mut P,
+        first: u32,
+        count: u32,
+        add: &mut impl FnMut(&SampleResult),
+    ) {
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
         if let Some(avx) = crate::simd::Avx::detect() {
             return avx.run(
                 #[inline(always)]
-                |avx| self.samples(avx, pixel, first, count, &mut add),
+                |avx| self.samples_from(avx, pixel, first, count, add),
             );
         }
-        self.samples_baseline(pixel, first, count, &mut add);
+        self.samples_baseline(pixel, first, count, add);
     }
 
-    /// [`Self::samples`] in the baseline's lanes, out of line: inlined, its frame (the whole
-    /// batch's state) would sit under the AVX function's on every call, 16 KB of stack that an
-    /// embedder's threads would need for nothing (tests/capi/cornell.c measures the stack).
+    /// [`Self::samples_from`] in the baseline's lanes, out of line: inlined, its frame (the
+    /// whole batch's state) would sit under the AVX function's on every call, 16 KB of stack
+    /// that an embedder's threads would need for nothing (tests/capi/cornell.c measures the
+    /// stack).
     #[inline(never)]
-    fn samples_baseline(
+    fn samples_baseline<P: PixelSamples>(
         &self,
-        pixel: Pixel<'_>,
+        pixel: &mut P,
         first: u32,
         count: u32,
         add: &mut impl FnMut(&SampleResult),
     ) {
-        self.samples(crate::simd::Baseline, pixel, first, count, add);
-    }
-
-    /// [`Self::samples_from`] with the pixel's sampler.
-    #[inline(always)]
-    fn samples<I: Isa>(
-        &self,
-        isa: I,
-        pixel: Pixel<'_>,
-        first: u32,
-        count: u32,
-        add: &mut impl FnMut(&SampleResult),
-    ) {
-        match pixel {
-            Pixel::Independent(p) => self.samples_from(isa, p, first, count, add),
-            Pixel::ZSobol(p) => self.samples_from(isa, p, first, count, add),
-        }
+        self.samples_from(crate::simd::Baseline, pixel, first, count, add);
     }
 
     /// Samples `first .. first + count` of `pixel`, [`BATCH`] at a time in the lanes of `isa`,
@@ -534,7 +758,7 @@ impl<O: Origin> Job<'_, '_, O> {
                     pixel.start_sample(index, 0);
                     add(&self
                         .origin
-                        .one(self.strategy, self.scene, self.settings, pixel));
+                        .one(index, self.strategy, self.scene, self.settings, pixel));
                 }
                 break;
             }

@@ -34,7 +34,8 @@ pub use bake::{
     bake_vertex, bake_vertex_batched, bake_vertex_by_sample, BakeEstimator, BakePoint, BakeSamples,
 };
 pub use batch::{
-    render_pixel_batched, IndependentPixel, PixelSamples, BATCH, MIN_LANES, PACKET_SEGMENTS,
+    render_pixel_batched, render_run_batched, IndependentPixels, PixelSamples, Span, ZSobolPixels,
+    BATCH, MIN_LANES, PACKET_SEGMENTS,
 };
 pub use bdpt::{li_bdpt, BdptScratch, BdptSink, MisHeuristic};
 pub use direct::{sample_direct, DirectSample};
@@ -474,6 +475,56 @@ pub fn render_pixel<K: BdptSink>(
     render_pixel_by_sample(
         integrator, scene, camera, settings, sampling, x, y, first, count, stats, scratch, sink,
     )
+}
+
+/// [`render_pixel`] for each pixel `(x + k, y)` of a run of a row, into `stats[k]`: the same
+/// sums bit for bit. A call of fewer samples per pixel than a batch's lanes need
+/// ([`MIN_LANES`]) under MIS path tracing fills its batches with the samples of neighbouring
+/// pixels ([`render_run_batched`]); every other call runs pixel by pixel.
+#[allow(clippy::too_many_arguments)]
+pub fn render_row<K: BdptSink>(
+    integrator: Integrator,
+    scene: &SceneView<'_>,
+    camera: &Camera,
+    settings: &PathSettings,
+    sampling: &Sampling,
+    (x, y): (u32, u32),
+    first: u32,
+    count: u32,
+    stats: &mut [PixelStats],
+    mut scratch: Option<&mut BdptScratch>,
+    sink: &mut K,
+) {
+    if integrator == Integrator::PathMis && (count as usize) < MIN_LANES && stats.len() > 1 {
+        render_run_batched(
+            &PathStrategy::MIS,
+            scene,
+            camera,
+            settings,
+            sampling,
+            (x, y),
+            first,
+            count,
+            stats,
+        );
+        return;
+    }
+    for (k, s) in stats.iter_mut().enumerate() {
+        *s = render_pixel(
+            integrator,
+            scene,
+            camera,
+            settings,
+            sampling,
+            x.wrapping_add(k as u32),
+            y,
+            first,
+            count,
+            *s,
+            scratch.as_deref_mut(),
+            sink,
+        );
+    }
 }
 
 /// [`render_pixel`] one sample after another through [`render_sample`]: the reference the

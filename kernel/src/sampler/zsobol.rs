@@ -350,7 +350,7 @@ impl ZSobolLayout {
 
     /// The Morton index of sample `index` of pixel `(x, y)`.
     #[inline]
-    fn morton_index(&self, x: u32, y: u32, index: u32) -> u64 {
+    pub(crate) fn morton_index(&self, x: u32, y: u32, index: u32) -> u64 {
         (morton2(x, y) << self.log2_spp) | u64::from(index)
     }
 
@@ -563,9 +563,13 @@ impl ZSobolPixelSampler {
                 lanes &= !(1 << lane);
             }
         }
-        let parts = self
-            .layout
-            .sample_parts(self.pixel_index, key, indices, lanes);
+        let mortons = indices.map(|i| self.pixel_index | u64::from(i));
+        let parts = self.layout.permuted_digits_lanes(
+            &mortons,
+            key,
+            lanes,
+            self.layout.sample_base4_digits(),
+        );
         let mut points = [[0u32; DRAW_LANES]; N];
         // Dimension 0's point, reversed, is the index; dimension 1's depends on the bytes of the
         // index, of which only the lowest differs between the lanes when the sample bits fit in
@@ -587,39 +591,35 @@ impl ZSobolPixelSampler {
                 };
             }
         }
-        let seeds = [key as u32, (key >> 32) as u32];
-        for k in 0..N {
-            let high = scrambled_high_bits(points[k], seeds[k]);
-            for lane in lanes_of(lanes) {
-                out[k][lane] = high[lane] as f32 * (1.0 / (1u32 << 24) as f32);
-            }
-        }
+        scramble_lanes(&points, key, lanes, out);
     }
 }
 
 impl ZSobolLayout {
-    /// [`Self::sample_part`] of the samples `indices[lane]` of the pixel whose Morton index (at
-    /// sample 0) is `pixel_index`, for the lanes of `lanes`. A digit's permutation depends on
-    /// the digits above it, which neighbouring samples share: it is chosen once per run of lanes
-    /// with the same higher digits (one for all of a pixel's samples at the top digit), not once
-    /// per lane.
+    /// The permuted base-4 digits below digit `to` of the Morton indices `mortons[lane]`, and
+    /// the odd base-2 digit at the bottom when `log2 spp` is odd, for the lanes of `lanes`
+    /// (the rest are 0): [`Self::sample_part`] with `to` the sample digits'
+    /// ([`Self::sample_base4_digits`]), [`Self::sample_index`] with `to` all of them. A digit's
+    /// permutation depends on the digits above it, which neighbouring samples share (a pixel's
+    /// samples, and neighbouring pixels above their lowest digits): it is chosen once per run
+    /// of lanes with the same higher digits, not once per lane.
     #[inline]
-    fn sample_parts(
+    fn permuted_digits_lanes(
         &self,
-        pixel_index: u64,
+        mortons: &[u64; DRAW_LANES],
         key: u64,
-        indices: &[u32; DRAW_LANES],
         lanes: u32,
+        to: u32,
     ) -> [u64; DRAW_LANES] {
         let odd = self.log2_spp & 1;
         let mut parts = [0u64; DRAW_LANES];
-        let mut i = self.sample_base4_digits();
+        let mut i = to;
         while i > odd {
             i -= 1;
             let shift = 2 * i - odd;
             let mut last: Option<(u64, usize)> = None;
             for lane in lanes_of(lanes) {
-                let m = pixel_index | u64::from(indices[lane]);
+                let m = mortons[lane];
                 let higher = m >> (shift + 2);
                 let p = match last {
                     Some((h, p)) if h == higher => p,
@@ -636,7 +636,7 @@ impl ZSobolLayout {
         if odd == 1 {
             let mut last: Option<(u64, u64)> = None;
             for lane in lanes_of(lanes) {
-                let m = pixel_index | u64::from(indices[lane]);
+                let m = mortons[lane];
                 let flip = match last {
                     Some((h, f)) if h == m >> 1 => f,
                     _ => {
@@ -649,6 +649,65 @@ impl ZSobolLayout {
             }
         }
         parts
+    }
+
+    /// Sample `index` of pixel `(x, y)` at dimension `dimension`, for any `index`: past
+    /// [`Self::capacity`] it runs into the pixel bits, as [`ZSobolPixelSampler`] draws there
+    /// ([`Self::start_pixel_sample`] refuses such an index in debug builds).
+    #[inline]
+    #[must_use]
+    pub(crate) fn sampler_at(&self, x: u32, y: u32, index: u32, dimension: u32) -> ZSobolSampler {
+        ZSobolSampler {
+            layout: *self,
+            morton_index: self.morton_index(x, y, index),
+            dimension,
+        }
+    }
+
+    /// The draw of `N` (1 or 2) dimensions from `dimension` on for samples of any pixels:
+    /// `out[k][lane]` is dimension `dimension + k` of the sample whose Morton index is
+    /// `mortons[lane]` ([`Self::morton_index`]), for the lanes of `live`, exactly what
+    /// [`Self::sampler_at`] and a draw of `N` give (other lanes are left alone). For a batch
+    /// of a few samples of each of several neighbouring pixels (a low sample count's lanes):
+    /// the key is found once, each digit's permutation once per run of lanes that share the
+    /// digits above it, and the scramble runs in SIMD lanes. Always inlined, so that the
+    /// scramble is compiled with its caller's instructions.
+    #[inline(always)]
+    pub(crate) fn draw_lanes_at<const N: usize>(
+        &self,
+        mortons: &[u64; DRAW_LANES],
+        dimension: u32,
+        live: u32,
+        out: &mut [[f32; DRAW_LANES]; N],
+    ) {
+        let key = self.dimension_key(dimension);
+        let lanes = live & ((1 << DRAW_LANES) - 1);
+        let index = self.permuted_digits_lanes(mortons, key, lanes, self.base4_digits);
+        let mut points = [[0u32; DRAW_LANES]; N];
+        for lane in lanes_of(lanes) {
+            for (k, point) in points.iter_mut().enumerate() {
+                point[lane] = sobol_reversed(index[lane], k);
+            }
+        }
+        scramble_lanes(&points, key, lanes, out);
+    }
+}
+
+/// `out[k][lane]` = the scrambled Sobol' point `points[k][lane]` of a dimension whose key is
+/// `key`, as [`draw`] turns it into a number in `[0, 1)`, for the lanes of `lanes`.
+#[inline(always)]
+fn scramble_lanes<const N: usize>(
+    points: &[[u32; DRAW_LANES]; N],
+    key: u64,
+    lanes: u32,
+    out: &mut [[f32; DRAW_LANES]; N],
+) {
+    let seeds = [key as u32, (key >> 32) as u32];
+    for k in 0..N {
+        let high = scrambled_high_bits(points[k], seeds[k]);
+        for lane in lanes_of(lanes) {
+            out[k][lane] = high[lane] as f32 * (1.0 / (1u32 << 24) as f32);
+        }
     }
 }
 
