@@ -72,7 +72,8 @@ pub const BATCH: usize = 8;
 /// The fewest samples a batch runs in lanes: fewer (a call of fewer samples, or the last of a
 /// call's batches) run one at a time through the one-path loop, which gives the same bits in
 /// less time than lanes that run mostly empty (a progressive view's passes of 1 spp, its
-/// previews, low-spp renders). Measured (`cargo bench -p ember-tests --bench batch`, `calls/…`,
+/// previews, low-spp renders). [`super::render_row`] fills the lanes of such calls with the
+/// samples of neighbouring pixels instead ([`render_run_batched`]). Measured (`cargo bench -p ember-tests --bench batch`, `calls/…`,
 /// AMD EPYC Zen 5, one thread, MIS, Sobol'): a film rendered in calls of n samples per pixel
 /// took, batched in lanes over one at a time, 1.77 / 1.69 (the Cornell box / `cbox.obj`) at
 /// n = 1, 1.35 / 1.34 at 2, 1.06 / 1.05 at 4, 0.96 / 0.98 at 5, 0.89 / 0.91 at 6, 0.89 / 0.90

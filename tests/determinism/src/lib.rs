@@ -21,7 +21,7 @@ use ember_kernel::camera::Camera;
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
 use ember_kernel::geometry::{TriangleGroup, GROUP_WIDTH};
 use ember_kernel::integrator::{
-    bake_vertex, render_pixel, BakeEstimator, BakePoint, BakeSamples, BdptScratch, Integrator,
+    bake_vertex, render_pixel, render_row, BakeEstimator, BakePoint, BakeSamples, BdptScratch, Integrator,
     MisHeuristic, PathSettings, PixelStats, Shortcuts,
 };
 use ember_kernel::material::{PhongParams, Reflectance, Surface};
@@ -761,6 +761,37 @@ pub fn render_pixel_rgb(scene: &SceneView<'_>, integrator: Integrator, x: u32, y
     pixel(scene, &camera(), integrator, &RENDER_PATH, SPP, SEED, x, y)
 }
 
+/// The determinism render's pixels `(x0 + k, y)` with `integrator` into `out[k]` (at most
+/// [`WIDTH`] of them), by one [`render_row`] call: under MIS, whose batches fill their lanes
+/// with neighbouring pixels' samples ([`SPP`] is too few for one pixel's), as `ember render`
+/// and the C API render a tile's rows. The values are [`render_pixel_rgb`]'s, bit for bit.
+pub fn render_row_rgb(
+    scene: &SceneView<'_>,
+    integrator: Integrator,
+    x0: u32,
+    y: u32,
+    out: &mut [[f32; 3]],
+) {
+    let mut stats = [PixelStats::default(); WIDTH as usize];
+    let stats = &mut stats[..out.len()];
+    render_row(
+        integrator,
+        scene,
+        &camera(),
+        &RENDER_PATH,
+        &Sampling::new(integrator.default_sampler(), SEED, SPP, WIDTH, HEIGHT),
+        (x0, y),
+        0,
+        SPP,
+        stats,
+        None,
+        &mut ember_kernel::splat::NoSplats,
+    );
+    for (o, s) in out.iter_mut().zip(stats.iter()) {
+        *o = (s.sum / SPP as f32).to_array();
+    }
+}
+
 /// Sample sums of the determinism render's pixel `(x, y)` with a splatting integrator of
 /// [`SPLAT_INTEGRATORS`] (what the C API's `ember_render_tile_splats` writes); its splats are
 /// added to `splats`. `scratch` holds BDPT's subpaths.
@@ -907,15 +938,17 @@ pub fn hash_results(
     }
 }
 
-/// The hash of the path-traced renders ([`Hashes::render`]), on the calling thread, hashing
-/// as it goes (no buffers).
+/// The hash of the path-traced renders ([`Hashes::render`]), on the calling thread, a row at
+/// a time ([`render_row_rgb`]), hashing as it goes.
 #[must_use]
 pub fn render_hash(view: &SceneView<'_>) -> u64 {
     let mut h = Fnv1a::default();
+    let mut row = [[0.0f32; 3]; WIDTH as usize];
     for integrator in INTEGRATORS {
         for y in 0..HEIGHT {
-            for x in 0..WIDTH {
-                h.write_f32s(&render_pixel_rgb(view, integrator, x, y));
+            render_row_rgb(view, integrator, 0, y, &mut row);
+            for px in &row {
+                h.write_f32s(px);
             }
         }
     }

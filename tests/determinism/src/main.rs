@@ -12,7 +12,7 @@
 //! `PREFIX-<integrator>.ppm` (sRGB, clamped) to look at.
 
 use ember_determinism::{
-    bake_point, hash_results, render_pixel_rgb, render_pixel_sum, resolve_pixel, Scene,
+    bake_point, hash_results, render_pixel_sum, render_row_rgb, resolve_pixel, Scene,
     SplatBuffer, BAKE_ESTIMATORS, BAKE_POINTS, HEIGHT, INTEGRATORS, PIXELS, SPLAT_INTEGRATORS,
     WIDTH,
 };
@@ -58,20 +58,25 @@ fn render(
                     let mut pixels = Vec::new();
                     for &(x0, y0, w, h) in items.iter().skip(t).step_by(threads) {
                         for y in y0..y0 + h {
-                            for x in x0..x0 + w {
-                                let v = if integrator.splats() {
-                                    render_pixel_sum(
+                            let at = |x: u32| (y * WIDTH + x) as usize;
+                            if integrator.splats() {
+                                for x in x0..x0 + w {
+                                    let v = render_pixel_sum(
                                         view,
                                         integrator,
                                         x,
                                         y,
                                         &mut scratch,
                                         &mut buffer,
-                                    )
-                                } else {
-                                    render_pixel_rgb(view, integrator, x, y)
-                                };
-                                pixels.push(((y * WIDTH + x) as usize, v));
+                                    );
+                                    pixels.push((at(x), v));
+                                }
+                            } else {
+                                // The item's row as one run (its lanes filled with
+                                // neighbouring pixels' samples), whatever the item's size.
+                                let mut row = vec![[0.0f32; 3]; w as usize];
+                                render_row_rgb(view, integrator, x0, y, &mut row);
+                                pixels.extend((x0..).map(at).zip(row));
                             }
                         }
                     }
