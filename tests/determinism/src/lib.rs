@@ -21,8 +21,8 @@ use ember_kernel::camera::Camera;
 use ember_kernel::emitter::{build_emitter_table, EmitterPolicy};
 use ember_kernel::geometry::{TriangleGroup, GROUP_WIDTH};
 use ember_kernel::integrator::{
-    bake_vertex, render_pixel, render_row, BakeEstimator, BakePoint, BakeSamples, BdptScratch, Integrator,
-    MisHeuristic, PathSettings, PixelStats, Shortcuts,
+    bake_vertex, render_pixel, render_row, BakeEstimator, BakePoint, BakeSamples, BdptScratch,
+    Integrator, MisHeuristic, PathSettings, PixelStats, Shortcuts,
 };
 use ember_kernel::material::{PhongParams, Reflectance, Surface};
 use ember_kernel::sampler::{SamplerKind, Sampling, DEFAULT_SEED};

@@ -12,9 +12,8 @@
 //! `PREFIX-<integrator>.ppm` (sRGB, clamped) to look at.
 
 use ember_determinism::{
-    bake_point, hash_results, render_pixel_sum, render_row_rgb, resolve_pixel, Scene,
-    SplatBuffer, BAKE_ESTIMATORS, BAKE_POINTS, HEIGHT, INTEGRATORS, PIXELS, SPLAT_INTEGRATORS,
-    WIDTH,
+    bake_point, hash_results, render_pixel_sum, render_row_rgb, resolve_pixel, Scene, SplatBuffer,
+    BAKE_ESTIMATORS, BAKE_POINTS, HEIGHT, INTEGRATORS, PIXELS, SPLAT_INTEGRATORS, WIDTH,
 };
 use ember_kernel::integrator::{BdptScratch, Integrator};
 use ember_kernel::scene::SceneView;
