@@ -197,20 +197,32 @@ impl IndependentPixels {
     }
 }
 
-impl Sampler for IndependentPixels {
-    #[inline(always)]
-    fn next_1d(&mut self) -> f32 {
-        self.sampler.next_1d()
-    }
-    #[inline(always)]
-    fn set_dimension(&mut self, d: u32) {
-        self.sampler.set_dimension(d);
-    }
-    #[inline(always)]
-    fn dimension(&self) -> u32 {
-        self.sampler.dimension()
-    }
+/// [`Sampler`] for a type whose `sampler` field holds the sample started last.
+macro_rules! sampler_of_started {
+    ($t:ty) => {
+        impl Sampler for $t {
+            #[inline(always)]
+            fn next_1d(&mut self) -> f32 {
+                self.sampler.next_1d()
+            }
+            #[inline(always)]
+            fn next_2d(&mut self) -> Vec2 {
+                self.sampler.next_2d()
+            }
+            #[inline(always)]
+            fn set_dimension(&mut self, d: u32) {
+                self.sampler.set_dimension(d);
+            }
+            #[inline(always)]
+            fn dimension(&self) -> u32 {
+                self.sampler.dimension()
+            }
+        }
+    };
 }
+
+sampler_of_started!(IndependentPixels);
+sampler_of_started!(ZSobolPixels);
 
 impl PixelSamples for IndependentPixels {
     #[inline(always)]
@@ -252,25 +264,6 @@ impl ZSobolPixels {
         let (k, sample) = self.span.locate(j);
         self.layout
             .morton_index(self.x.wrapping_add(k), self.y, sample)
-    }
-}
-
-impl Sampler for ZSobolPixels {
-    #[inline(always)]
-    fn next_1d(&mut self) -> f32 {
-        self.sampler.next_1d()
-    }
-    #[inline(always)]
-    fn next_2d(&mut self) -> Vec2 {
-        self.sampler.next_2d()
-    }
-    #[inline(always)]
-    fn set_dimension(&mut self, d: u32) {
-        self.sampler.set_dimension(d);
-    }
-    #[inline(always)]
-    fn dimension(&self) -> u32 {
-        self.sampler.dimension()
     }
 }
 
