@@ -90,8 +90,11 @@ for n in 1 2 7; do
 done
 record "host release, 7 threads, 5x5 tiles" \
     "$("$target/release/ember-determinism" --threads 7 --tile 5)"
-# The ray queries run with AVX2 where the CPU has it (kernel/src/simd.rs); this row runs the
-# baseline (SSE2) lanes on such a CPU too.
+# The ray queries run with AVX-512 or AVX2 where the CPU has it (kernel/src/simd.rs); these
+# rows run the AVX2 lanes (eight, one triangle group at a time) and the baseline (SSE2) lanes
+# on such a CPU too.
+record "host release, at most AVX2 ray-query lanes, 2 threads" \
+    "$("$target/release/ember-determinism" --threads 2 --simd avx2)"
 record "host release, baseline ray-query lanes only, 2 threads" \
     "$("$target/release/ember-determinism" --threads 2 --simd baseline)"
 

@@ -243,7 +243,9 @@ def cpu_line():
     except OSError:
         pass
     simd = [f for f in ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512bw", "avx512vl") if f in flags]
-    return f"CPU: {model}, {os.cpu_count()} logical cores; SIMD: {' '.join(simd) or 'none listed'}."
+    lanes = os.environ.get("EMBER_SIMD", "auto")
+    return (f"CPU: {model}, {os.cpu_count()} logical cores; SIMD: {' '.join(simd) or 'none listed'}; "
+            f"ember's lanes: EMBER_SIMD={lanes} (auto: AVX-512 where listed, else AVX2).")
 
 
 # ----------------------------------------------------------------------------- statistics

@@ -35,6 +35,8 @@ MITSUBA_SAMPLERS="${MITSUBA_SAMPLERS:-independent}"      # e.g. independent,stra
 # (Haswell, 8 lanes: an AVX2 machine's code on this CPU; pair it with EMBER_NATIVE=1
 # EMBER_NATIVE_CPU=x86-64-v3 and an OUT of its own).
 MITSUBA_LLVM_TARGET="${MITSUBA_LLVM_TARGET:-native}"
+# At AVX2 width ember keeps to eight lanes too (its AVX-512 dispatch off: kernel/src/simd.rs).
+if [ "$MITSUBA_LLVM_TARGET" = avx2 ]; then export EMBER_SIMD="${EMBER_SIMD:-avx2}"; fi
 # Where results.csv, bench.csv, bench.svg and table.md go: this folder for the Cornell box,
 # bench/mitsuba/<scene stem>/ for another scene.
 if [ "$SCENE" = data/cornell-box/cornell_box.toml ]; then OUT="${OUT:-$HERE}"

@@ -1,8 +1,10 @@
 //! `EMBER_SIMD`: which instructions the kernel's ray queries may use (`ember_kernel::simd`).
 //!
-//! `auto` (or unset): AVX where the CPU has it, the build's baseline otherwise. `baseline`:
-//! the baseline only, for benchmarks of the dispatch itself and for checking that both give
-//! the same images. No value changes a result.
+//! `auto` (or unset): AVX-512 or AVX2 where the CPU has it, the build's baseline otherwise.
+//! `avx2`: at most AVX2 (eight lanes), for measuring what AVX-512 buys, for comparisons at an
+//! AVX2 machine's width, and for CPUs that slow their clock for 512-bit instructions.
+//! `baseline`: the baseline only, for benchmarks of the dispatch itself and for checking that
+//! all give the same images. No value changes a result.
 
 /// The environment variable read by [`apply_env`].
 pub const VAR: &str = "EMBER_SIMD";
@@ -15,19 +17,30 @@ pub fn apply_env() -> Result<(), String> {
     match std::env::var(VAR) {
         Err(std::env::VarError::NotPresent) => Ok(()),
         Ok(v) if v == "auto" => Ok(()),
+        Ok(v) if v == "avx2" => {
+            #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+            ember_kernel::simd::limit_to_avx2();
+            Ok(())
+        }
         Ok(v) if v == "baseline" => {
             #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
             ember_kernel::simd::limit_to_baseline();
             Ok(())
         }
-        Ok(v) => Err(format!("{VAR}={v:?}: expected \"auto\" or \"baseline\"")),
+        Ok(v) => Err(format!(
+            "{VAR}={v:?}: expected \"auto\", \"avx2\" or \"baseline\""
+        )),
         Err(e) => Err(format!("{VAR}: {e}")),
     }
 }
 
-/// What the ray queries run with in this process: `"avx"` or `"baseline"`.
+/// What the ray queries run with in this process: `"avx512"`, `"avx"` or `"baseline"`.
 #[must_use]
 pub fn in_use() -> &'static str {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    if ember_kernel::simd::Avx512::detect().is_some() {
+        return "avx512";
+    }
     #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
     if ember_kernel::simd::Avx::detect().is_some() {
         return "avx";

@@ -293,6 +293,13 @@ impl<'a> SceneView<'a> {
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        if let Some(avx512) = crate::simd::Avx512::detect() {
+            return avx512.run(
+                #[inline(always)]
+                |avx512| self.intersect_in(avx512, ray),
+            );
+        }
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
         if let Some(avx) = crate::simd::Avx::detect() {
             return avx.run(
                 #[inline(always)]
@@ -341,6 +348,13 @@ impl<'a> SceneView<'a> {
     #[inline]
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        if let Some(avx512) = crate::simd::Avx512::detect() {
+            return avx512.run(
+                #[inline(always)]
+                |avx512| self.occluded_in(avx512, ray),
+            );
+        }
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
         if let Some(avx) = crate::simd::Avx::detect() {
             return avx.run(
@@ -471,9 +485,10 @@ impl<'a> SceneView<'a> {
     /// triangle's vertices, from the leaf group where there is one), which returns
     /// the bound after it if it takes it; returns the last bound taken (with `ANY_HIT`, the
     /// first). With leaf groups, a group of triangles is tested at once against the bound at
-    /// the start of their group: a hit is offered only if it precedes every hit taken, so the
-    /// hits taken are those of the one-by-one test (`bvh::closest`), and the lane test
-    /// computes each hit bit for bit as the scalar test does.
+    /// the start of their group (or of their pair of groups, [`Isa::intersect_pair`]): a hit is
+    /// offered only if it precedes every hit taken, so the hits taken are those of the
+    /// one-by-one test (`bvh::closest`), and the lane test computes each hit bit for bit as the
+    /// scalar test does.
     #[inline(always)]
     fn leaf_hits<const ANY_HIT: bool, I: Isa>(
         &self,
@@ -512,6 +527,36 @@ impl<'a> SceneView<'a> {
             let base = g * GROUP_WIDTH;
             let lanes_end = end.min(base + GROUP_WIDTH);
             let lanes = ((1u32 << (lanes_end - base)) - 1) & !((1u32 << (slot - base)) - 1);
+            // A leaf that goes on into the next group: both at once where the instruction set
+            // has lanes for two (AVX-512), the second group's lanes above the first's, so that
+            // the hits are offered in slot order all the same.
+            if lanes_end < end {
+                let pair_end = end.min(base + 2 * GROUP_WIDTH);
+                let second = (1u32 << (pair_end - lanes_end)) - 1;
+                if let Some(hits) = isa.intersect_pair(
+                    [&groups[g], &groups[g + 1]],
+                    wray,
+                    t_max,
+                    lanes | second << GROUP_WIDTH,
+                ) {
+                    let mut mask = hits.mask;
+                    while mask != 0 {
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let h = TriangleHit {
+                            t: hits.t[lane],
+                            b1: hits.b1[lane],
+                            b2: hits.b2[lane],
+                        };
+                        let vertices = groups[g + lane / GROUP_WIDTH].triangle(lane % GROUP_WIDTH);
+                        if offer(order[base + lane], h, vertices, &mut t_max) {
+                            return bound;
+                        }
+                    }
+                    slot = pair_end;
+                    continue;
+                }
+            }
             let hits = groups[g].intersect_in::<I::Group>(isa, wray, t_max, lanes);
             let mut mask = hits.mask;
             while mask != 0 {

@@ -112,12 +112,18 @@ impl SceneView<'_> {
     ) -> [Option<SurfaceInteraction>; N] {
         let mut out = SurfaceLanes::default();
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-        let found = match crate::simd::Avx::detect() {
-            Some(avx) => avx.run(
+        let found = match (crate::simd::Avx512::detect(), crate::simd::Avx::detect()) {
+            (Some(avx512), _) => avx512.run(
+                #[inline(always)]
+                |avx512| self.interactions_in(avx512, rays, hits, lanes, &mut out),
+            ),
+            (None, Some(avx)) => avx.run(
                 #[inline(always)]
                 |avx| self.interactions_in(avx, rays, hits, lanes, &mut out),
             ),
-            None => self.interactions_in(crate::simd::Baseline, rays, hits, lanes, &mut out),
+            (None, None) => {
+                self.interactions_in(crate::simd::Baseline, rays, hits, lanes, &mut out)
+            }
         };
         #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
         let found = self.interactions_in(crate::simd::Baseline, rays, hits, lanes, &mut out);

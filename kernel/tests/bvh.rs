@@ -703,8 +703,8 @@ type ClosestQuery = fn(&SceneView, &Ray) -> Option<Hit>;
 type AnyQuery = fn(&SceneView, &Ray) -> bool;
 
 /// Calls `check(name, closest, any)` with the scene's queries in each instruction set this
-/// CPU has (`ember_kernel::simd`): the baseline always, AVX2 where detected, whichever
-/// `SceneView::intersect` picks.
+/// CPU has (`ember_kernel::simd`): the baseline always, AVX2 and AVX-512 (two triangle groups
+/// at once) where detected, whichever `SceneView::intersect` picks.
 fn each_isa(mut check: impl FnMut(&str, ClosestQuery, AnyQuery)) {
     check(
         "baseline",
@@ -721,6 +721,20 @@ fn each_isa(mut check: impl FnMut(&str, ClosestQuery, AnyQuery)) {
             },
             |s, r| {
                 let avx = ember_kernel::simd::Avx::detect().expect("detected above");
+                avx.run(|avx| s.occluded_in(avx, r))
+            },
+        );
+    }
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    if ember_kernel::simd::Avx512::detect().is_some() {
+        check(
+            "AVX-512",
+            |s, r| {
+                let avx = ember_kernel::simd::Avx512::detect().expect("detected above");
+                avx.run(|avx| s.intersect_in(avx, r))
+            },
+            |s, r| {
+                let avx = ember_kernel::simd::Avx512::detect().expect("detected above");
                 avx.run(|avx| s.occluded_in(avx, r))
             },
         );

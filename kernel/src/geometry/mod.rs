@@ -13,4 +13,4 @@ pub use triangle::{
     inset_barycentrics, intersect_triangle, triangle_point, triangle_point_error, TriangleHit,
     WatertightRay,
 };
-pub use triangle_group::{GroupHits, TriangleGroup, GROUP_WIDTH};
+pub use triangle_group::{GroupHits, PairHits, TriangleGroup, TriangleHits, GROUP_WIDTH};

@@ -33,9 +33,191 @@ use crate::math::gamma;
 use glam::Vec3;
 
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-pub use eight::{GroupHits, TriangleGroup, GROUP_WIDTH};
+pub use eight::{GroupHits, PairHits, TriangleGroup, GROUP_WIDTH};
 #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-pub use four::{GroupHits, TriangleGroup, GROUP_WIDTH};
+pub use four::{GroupHits, PairHits, TriangleGroup, GROUP_WIDTH};
+
+/// What a test of `W` triangles in lanes found: lane `i` hit at `t[i]` with barycentrics
+/// `b1[i]`, `b2[i]` if bit `i` of `mask` is set.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleHits<const W: usize> {
+    pub mask: u32,
+    pub t: [f32; W],
+    pub b1: [f32; W],
+    pub b2: [f32; W],
+}
+
+impl<const W: usize> TriangleHits<W> {
+    /// No hits.
+    pub const NONE: Self = Self {
+        mask: 0,
+        t: [0.0; W],
+        b1: [0.0; W],
+        b2: [0.0; W],
+    };
+
+    /// Lane `lane`'s hit, if it has one.
+    #[inline]
+    #[must_use]
+    pub fn get(&self, lane: usize) -> Option<TriangleHit> {
+        (self.mask >> lane & 1 != 0).then(|| TriangleHit {
+            t: self.t[lane],
+            b1: self.b1[lane],
+            b2: self.b2[lane],
+        })
+    }
+
+    /// Lane `lane` set to the hit `h`.
+    #[inline(always)]
+    fn set(&mut self, lane: usize, h: TriangleHit) {
+        self.mask |= 1 << lane;
+        self.t[lane] = h.t;
+        self.b1[lane] = h.b1;
+        self.b2[lane] = h.b2;
+    }
+}
+
+/// The watertight test of `ray` against `W` triangles at once, `v[vertex][axis]` holding one
+/// triangle per lane, for the lanes of `lanes`, each against `t_max`: the hits of the lanes
+/// decided in f32, and the lanes whose edge function is exactly zero (bits), which the caller
+/// decides with the scalar test's f64 recomputation. The same operations in the same order as
+/// [`WatertightRay::intersect`], lane by lane, whatever `W` and `L`.
+#[inline(always)]
+fn watertight_lanes<const W: usize, L: crate::simd::Lanes<W>>(
+    isa: L::Isa,
+    ray: &WatertightRay,
+    t_max: f32,
+    lanes: u32,
+    v: [[L; 3]; 3],
+) -> (TriangleHits<W>, u32) {
+    let splat = |x: f32| L::splat(isa, x);
+    let kz = ray.k[2];
+    let o = ray.o.to_array();
+    let (sx, sy, sz) = (splat(ray.sx), splat(ray.sy), splat(ray.sz));
+    // The permutation is the rotation that makes kz the last axis (`WatertightRay::new`:
+    // kx = kz + 1, ky = kx + 1, mod 3). Spelt out per case; the branch goes the same way for
+    // every group a ray tests. (Tried, 2026-12-06: loads at the axes `ray.k` names instead of
+    // the branch. 6% fewer mispredictions in cachegrind's model on the 1k-triangle sphere, as
+    // many instructions, and not faster in nine alternating runs; the loads then wait on `k`.)
+    let rotate = |v: [L; 3]| match kz {
+        0 => [v[1], v[2], v[0]],
+        1 => [v[2], v[0], v[1]],
+        _ => v,
+    };
+    let [ox, oy, oz] = rotate([splat(o[0]), splat(o[1]), splat(o[2])]);
+    // Translated and permuted vertices.
+    let vertex = |k: usize| {
+        let [x, y, z] = rotate(v[k]);
+        [x - ox, y - oy, z - oz]
+    };
+    let [mut ax, mut ay, mut az] = vertex(0);
+    let [mut bx, mut by, mut bz] = vertex(1);
+    let [mut cx, mut cy, mut cz] = vertex(2);
+    ax += sx * az;
+    ay += sy * az;
+    bx += sx * bz;
+    by += sy * bz;
+    cx += sx * cz;
+    cy += sy * cz;
+    let e0 = bx * cy - by * cx;
+    let e1 = cx * ay - cy * ax;
+    let e2 = ax * by - ay * bx;
+    let zero = splat(0.0);
+    let lanes = lanes & (u32::MAX >> (32 - W));
+    // Lanes with an edge function exactly zero are decided in f64 by the scalar test.
+    let on_edge = (e0.simd_eq(zero) | e1.simd_eq(zero) | e2.simd_eq(zero)).to_bitmask() & lanes;
+    let negative = e0.simd_lt(zero) | e1.simd_lt(zero) | e2.simd_lt(zero);
+    let positive = e0.simd_gt(zero) | e1.simd_gt(zero) | e2.simd_gt(zero);
+    let det = e0 + e1 + e2;
+    let mut ok = !(negative & positive) & det.simd_ne(zero) & det.is_finite();
+    // Most groups a ray reaches it misses: stop before the distance and its error bound.
+    if ok.to_bitmask() & lanes & !on_edge == 0 {
+        return (TriangleHits::NONE, on_edge);
+    }
+    let max = |a: L, b: L| a.fast_max(b);
+    let max_z_world = max(max(az.abs(), bz.abs()), cz.abs());
+    az *= sz;
+    bz *= sz;
+    cz *= sz;
+    let t_scaled = e0 * az + e1 * bz + e2 * cz;
+    let t_max_det = splat(t_max) * det;
+    let det_neg = det.simd_lt(zero);
+    let det_pos = det.simd_gt(zero);
+    ok &= !(det_neg & (t_scaled.simd_ge(zero) | t_scaled.simd_lt(t_max_det)));
+    ok &= !(det_pos & (t_scaled.simd_le(zero) | t_scaled.simd_gt(t_max_det)));
+    if ok.to_bitmask() & lanes & !on_edge == 0 {
+        return (TriangleHits::NONE, on_edge);
+    }
+    let inv_det = splat(1.0) / det;
+    let b1 = e1 * inv_det;
+    let b2 = e2 * inv_det;
+    let t = t_scaled * inv_det;
+    let max_zt = max(max(az.abs(), bz.abs()), cz.abs());
+    let delta_z = splat(gamma(3)) * max_zt;
+    let max_xt = max(max(ax.abs(), bx.abs()), cx.abs());
+    let max_yt = max(max(ay.abs(), by.abs()), cy.abs());
+    let delta_x = splat(gamma(5)) * (max_xt + max_z_world);
+    let delta_y = splat(gamma(5)) * (max_yt + max_z_world);
+    let delta_e =
+        splat(2.0) * (splat(gamma(2)) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = max(max(e0.abs(), e1.abs()), e2.abs());
+    let delta_t = splat(3.0)
+        * (splat(gamma(3)) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
+        * inv_det.abs();
+    ok &= t.simd_gt(delta_t);
+    let hits = TriangleHits {
+        mask: ok.to_bitmask() & lanes & !on_edge,
+        t: t.to_array(),
+        b1: b1.to_array(),
+        b2: b2.to_array(),
+    };
+    (hits, on_edge)
+}
+
+/// The two-group test of AVX-512 ([`crate::simd::Isa::intersect_pair`]).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+impl TriangleGroup {
+    /// [`Self::intersect`] of two groups at once, in sixteen AVX-512 lanes: lane `i` of
+    /// `pair[1]` is lane `8 + i` of `lanes` and of the hits. The same hits, bit for bit.
+    #[inline(always)]
+    #[must_use]
+    pub fn intersect_pair(
+        isa: crate::simd::Avx512,
+        pair: [&Self; 2],
+        ray: &WatertightRay,
+        t_max: f32,
+        lanes: u32,
+    ) -> PairHits {
+        use crate::simd::{Avx16, Avx512};
+        // (A function, not a closure, so that it can be always inlined: out of line, the
+        // intrinsics it calls would be calls too.)
+        #[inline(always)]
+        fn load(isa: Avx512, a: &[[f32; 8]; 3], b: &[[f32; 8]; 3]) -> [Avx16; 3] {
+            [
+                Avx16::from_halves(isa, &a[0], &b[0]),
+                Avx16::from_halves(isa, &a[1], &b[1]),
+                Avx16::from_halves(isa, &a[2], &b[2]),
+            ]
+        }
+        let [a, b] = pair;
+        let v = [
+            load(isa, &a.v[0], &b.v[0]),
+            load(isa, &a.v[1], &b.v[1]),
+            load(isa, &a.v[2], &b.v[2]),
+        ];
+        let (mut hits, on_edge) = watertight_lanes(isa, ray, t_max, lanes, v);
+        let mut rest = on_edge;
+        while rest != 0 {
+            let lane = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let [p0, p1, p2] = pair[lane / GROUP_WIDTH].triangle(lane % GROUP_WIDTH);
+            if let Some(h) = ray.intersect(t_max, p0, p1, p2) {
+                hits.set(lane, h);
+            }
+        }
+        hits
+    }
+}
 
 impl WatertightRay {
     /// [`Self::intersect`] of the lanes of `group` selected by `lanes` (bit `i`: lane `i`),
@@ -77,28 +259,12 @@ macro_rules! triangle_group {
                 }
             }
 
-            /// What [`TriangleGroup::intersect`] found: lane `i` hit at `t[i]` with
-            /// barycentrics `b1[i]`, `b2[i]` if bit `i` of `mask` is set.
-            #[derive(Clone, Copy, Debug)]
-            pub struct GroupHits {
-                pub mask: u32,
-                pub t: [f32; GROUP_WIDTH],
-                pub b1: [f32; GROUP_WIDTH],
-                pub b2: [f32; GROUP_WIDTH],
-            }
+            /// What [`TriangleGroup::intersect`] found.
+            pub type GroupHits = TriangleHits<GROUP_WIDTH>;
 
-            impl GroupHits {
-                /// Lane `lane`'s hit, if it has one.
-                #[inline]
-                #[must_use]
-                pub fn get(&self, lane: usize) -> Option<TriangleHit> {
-                    (self.mask >> lane & 1 != 0).then(|| TriangleHit {
-                        t: self.t[lane],
-                        b1: self.b1[lane],
-                        b2: self.b2[lane],
-                    })
-                }
-            }
+            /// What [`crate::simd::Isa::intersect_pair`] found: two groups' lanes, the second
+            /// group's from lane [`GROUP_WIDTH`] on.
+            pub type PairHits = TriangleHits<{ 2 * GROUP_WIDTH }>;
 
             impl TriangleGroup {
                 /// Lane `lane`'s vertices.
@@ -152,102 +318,13 @@ macro_rules! triangle_group {
                     t_max: f32,
                     lanes: u32,
                 ) -> GroupHits {
-                    let splat = |x: f32| L::splat(isa, x);
-                    let kz = ray.k[2];
-                    let o = ray.o.to_array();
-                    let (sx, sy, sz) = (splat(ray.sx), splat(ray.sy), splat(ray.sz));
-                    // The permutation is the rotation that makes kz the last axis
-                    // (`WatertightRay::new`: kx = kz + 1, ky = kx + 1, mod 3). Spelt out per
-                    // case, so the loads need no bounds checks; the branch goes the same way
-                    // for every group a ray tests. (Tried, 2026-12-06: loads at the axes `ray.k`
-                    // names instead of the branch. 6% fewer mispredictions in cachegrind's model
-                    // on the 1k-triangle sphere, as many instructions, and not faster in nine
-                    // alternating runs; the loads then wait on `k`.)
-                    let rotate = |v: [L; 3]| match kz {
-                        0 => [v[1], v[2], v[0]],
-                        1 => [v[2], v[0], v[1]],
-                        _ => v,
-                    };
                     // (No `array::map`, which need not be inlined, and must be with AVX.)
-                    let [ox, oy, oz] = rotate([splat(o[0]), splat(o[1]), splat(o[2])]);
-                    // Translated and permuted vertices.
-                    let vertex = |k: usize| {
+                    let load = |k: usize| {
                         let v = &self.v[k];
-                        let [x, y, z] =
-                            rotate([L::new(isa, v[0]), L::new(isa, v[1]), L::new(isa, v[2])]);
-                        [x - ox, y - oy, z - oz]
+                        [L::new(isa, v[0]), L::new(isa, v[1]), L::new(isa, v[2])]
                     };
-                    let [mut ax, mut ay, mut az] = vertex(0);
-                    let [mut bx, mut by, mut bz] = vertex(1);
-                    let [mut cx, mut cy, mut cz] = vertex(2);
-                    ax += sx * az;
-                    ay += sy * az;
-                    bx += sx * bz;
-                    by += sy * bz;
-                    cx += sx * cz;
-                    cy += sy * cz;
-                    let e0 = bx * cy - by * cx;
-                    let e1 = cx * ay - cy * ax;
-                    let e2 = ax * by - ay * bx;
-                    let zero = splat(0.0);
-                    let lanes = lanes & ((1 << GROUP_WIDTH) - 1);
-                    // Lanes with an edge function exactly zero are decided in f64 by the
-                    // scalar test.
-                    let on_edge = (e0.simd_eq(zero) | e1.simd_eq(zero) | e2.simd_eq(zero))
-                        .to_bitmask()
-                        & lanes;
-                    let negative = e0.simd_lt(zero) | e1.simd_lt(zero) | e2.simd_lt(zero);
-                    let positive = e0.simd_gt(zero) | e1.simd_gt(zero) | e2.simd_gt(zero);
-                    let det = e0 + e1 + e2;
-                    let mut ok = !(negative & positive) & det.simd_ne(zero) & det.is_finite();
-                    let mut hits = GroupHits {
-                        mask: 0,
-                        t: [0.0; GROUP_WIDTH],
-                        b1: [0.0; GROUP_WIDTH],
-                        b2: [0.0; GROUP_WIDTH],
-                    };
-                    // Most groups a ray reaches it misses: stop before the distance and its
-                    // error bound.
-                    if ok.to_bitmask() & lanes & !on_edge == 0 {
-                        return self.intersect_on_edge(ray, t_max, on_edge, hits);
-                    }
-                    let max = |a: L, b: L| a.fast_max(b);
-                    let max_z_world = max(max(az.abs(), bz.abs()), cz.abs());
-                    az *= sz;
-                    bz *= sz;
-                    cz *= sz;
-                    let t_scaled = e0 * az + e1 * bz + e2 * cz;
-                    let t_max_det = splat(t_max) * det;
-                    let det_neg = det.simd_lt(zero);
-                    let det_pos = det.simd_gt(zero);
-                    ok &= !(det_neg & (t_scaled.simd_ge(zero) | t_scaled.simd_lt(t_max_det)));
-                    ok &= !(det_pos & (t_scaled.simd_le(zero) | t_scaled.simd_gt(t_max_det)));
-                    if ok.to_bitmask() & lanes & !on_edge == 0 {
-                        return self.intersect_on_edge(ray, t_max, on_edge, hits);
-                    }
-                    let inv_det = splat(1.0) / det;
-                    let b1 = e1 * inv_det;
-                    let b2 = e2 * inv_det;
-                    let t = t_scaled * inv_det;
-                    let max_zt = max(max(az.abs(), bz.abs()), cz.abs());
-                    let delta_z = splat(gamma(3)) * max_zt;
-                    let max_xt = max(max(ax.abs(), bx.abs()), cx.abs());
-                    let max_yt = max(max(ay.abs(), by.abs()), cy.abs());
-                    let delta_x = splat(gamma(5)) * (max_xt + max_z_world);
-                    let delta_y = splat(gamma(5)) * (max_yt + max_z_world);
-                    let delta_e = splat(2.0)
-                        * (splat(gamma(2)) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-                    let max_e = max(max(e0.abs(), e1.abs()), e2.abs());
-                    let delta_t = splat(3.0)
-                        * (splat(gamma(3)) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
-                        * inv_det.abs();
-                    ok &= t.simd_gt(delta_t);
-                    hits = GroupHits {
-                        mask: ok.to_bitmask() & lanes & !on_edge,
-                        t: t.to_array(),
-                        b1: b1.to_array(),
-                        b2: b2.to_array(),
-                    };
+                    let (hits, on_edge) =
+                        watertight_lanes(isa, ray, t_max, lanes, [load(0), load(1), load(2)]);
                     self.intersect_on_edge(ray, t_max, on_edge, hits)
                 }
 
@@ -267,10 +344,7 @@ macro_rules! triangle_group {
                         rest &= rest - 1;
                         let [p0, p1, p2] = self.triangle(lane);
                         if let Some(h) = ray.intersect(t_max, p0, p1, p2) {
-                            hits.mask |= 1 << lane;
-                            hits.t[lane] = h.t;
-                            hits.b1[lane] = h.b1;
-                            hits.b2[lane] = h.b2;
+                            hits.set(lane, h);
                         }
                     }
                     hits
@@ -457,6 +531,144 @@ mod tests {
         crate::simd::Avx8,
         crate::simd::Avx::detect()
     );
+
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    group_tests!(
+        eight_avx512,
+        eight,
+        crate::simd::Avx8<crate::simd::Avx512>,
+        crate::simd::Avx512::detect()
+    );
+
+    /// AVX-512's test of two groups at once ([`super::TriangleGroup::intersect_pair`]).
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    mod pair {
+        use super::super::{TriangleGroup, GROUP_WIDTH};
+        use crate::geometry::triangle::{TriangleHit, WatertightRay};
+        use crate::sampler::{IndependentSampler, Sampler};
+        use crate::simd::Avx512;
+        use glam::Vec3;
+
+        const ALL: u32 = (1 << (2 * GROUP_WIDTH)) - 1;
+
+        fn isa() -> Option<Avx512> {
+            let isa = Avx512::detect();
+            if isa.is_none() {
+                std::eprintln!("skipped: this CPU lacks AVX-512");
+            }
+            isa
+        }
+
+        /// Every lane of the pair test equals the scalar test of its triangle, bit for bit,
+        /// for lane masks within either group and across both; lane `i` holds
+        /// `tris[i % tris.len()]`. Returns the lanes hit with all lanes tested.
+        fn assert_same(isa: Avx512, ray: &WatertightRay, t_max: f32, tris: &[[Vec3; 3]]) -> u32 {
+            let tris: [[Vec3; 3]; 2 * GROUP_WIDTH] =
+                core::array::from_fn(|lane| tris[lane % tris.len()]);
+            let mut groups = [TriangleGroup::default(); 2];
+            for (lane, &t) in tris.iter().enumerate() {
+                groups[lane / GROUP_WIDTH].set(lane % GROUP_WIDTH, t);
+            }
+            let bits = |h: Option<TriangleHit>| h.map(|h| [h.t, h.b1, h.b2].map(f32::to_bits));
+            let mut hit_lanes = 0;
+            for lanes in [ALL, 0x5555, 0xAAAA, 0x00FF, 0xFF00, 0x0180, 0x8001, 0x0] {
+                let hits =
+                    TriangleGroup::intersect_pair(isa, [&groups[0], &groups[1]], ray, t_max, lanes);
+                for (lane, &[p0, p1, p2]) in tris.iter().enumerate() {
+                    let scalar = if lanes >> lane & 1 != 0 {
+                        ray.intersect(t_max, p0, p1, p2)
+                    } else {
+                        None
+                    };
+                    assert_eq!(
+                        bits(hits.get(lane)),
+                        bits(scalar),
+                        "lane {lane} of {tris:?}, mask {lanes:#x}, t_max {t_max}"
+                    );
+                    if lanes == ALL && scalar.is_some() {
+                        hit_lanes += 1;
+                    }
+                }
+                assert_eq!(hits.mask & !lanes, 0, "a lane outside the mask");
+            }
+            hit_lanes
+        }
+
+        #[test]
+        fn pairs_match_the_scalar_test_on_random_triangles() {
+            let Some(isa) = isa() else { return };
+            let mut rng = IndependentSampler::new(11, 0, 0);
+            let mut f = move || rng.next_1d();
+            let mut hits = 0;
+            for i in 0..10_000 {
+                let scale = [1e-4, 1.0, 1e4][i % 3];
+                let mut vec = |s: f32| Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * s;
+                let (o, d) = (vec(2.0 * scale), vec(1.0));
+                let ray = WatertightRay::new(o, d);
+                // Triangles around a point on the ray, so that about half are hit.
+                let c = o + d * (f() * 4.0 - 1.0);
+                let mut vec = |s: f32| Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * s;
+                let tris: [[Vec3; 3]; 2 * GROUP_WIDTH] =
+                    core::array::from_fn(|_| [vec(scale), vec(scale), vec(scale)].map(|v| c + v));
+                let t_max = [f32::INFINITY, 0.5, 2.0][i % 3];
+                hits += assert_same(isa, &ray, t_max, &tris);
+            }
+            assert!(hits > 1_250 * GROUP_WIDTH as u32, "only {hits} hits");
+        }
+
+        #[test]
+        fn pairs_match_the_scalar_test_on_edges_vertices_and_odd_numbers() {
+            let Some(isa) = isa() else { return };
+            // As the groups' test of the same name: a split square, rays through its shared
+            // edge, a vertex and along its plane, beside degenerate, NaN and infinite
+            // triangles; here spread over both groups of the pair.
+            let (a, b, c, d) = (Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y);
+            let nan = Vec3::splat(f32::NAN);
+            let inf = Vec3::new(f32::INFINITY, 0.0, 0.0);
+            let sets: [&[[Vec3; 3]]; 3] = [
+                &[[a, b, c], [a, c, d], [a, a, b], [nan, b, c], [a, b, b]],
+                &[[a, c, d], [a, b, c], [inf, b, c]],
+                &[
+                    [a, b, c],
+                    [a, c, d],
+                    [nan, b, c],
+                    [a, b, b],
+                    [inf, b, c],
+                    [a, a, b],
+                    [b, c, d],
+                ],
+            ];
+            let mut hits = 0;
+            for o in [
+                Vec3::new(0.5, 0.5, 1.0),
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 1.0, 3.0),
+                Vec3::new(0.25, 0.75, 1.0),
+                Vec3::new(-1.0, 0.5, 0.0),
+            ] {
+                for dir in [-Vec3::Z, Vec3::new(0.1, -0.2, -1.0), Vec3::X, Vec3::Z] {
+                    let ray = WatertightRay::new(o, dir);
+                    for t_max in [f32::INFINITY, 1.0, 0.999_999_9, 1.000_000_1] {
+                        for tris in sets {
+                            hits += assert_same(isa, &ray, t_max, tris);
+                        }
+                    }
+                }
+            }
+            assert!(hits > 20, "only {hits} hits");
+            for (o, dir) in [
+                (Vec3::splat(f32::NAN), -Vec3::Z),
+                (Vec3::new(0.5, 0.5, 1.0), Vec3::splat(f32::NAN)),
+                (Vec3::new(0.5, 0.5, f32::INFINITY), -Vec3::Z),
+                (Vec3::new(0.5, 0.5, 1.0), Vec3::ZERO),
+            ] {
+                let ray = WatertightRay::new(o, dir);
+                for tris in sets {
+                    assert_same(isa, &ray, f32::INFINITY, tris);
+                }
+            }
+        }
+    }
 
     /// The group the scene uses is the one its width names: eight wide on x86-64 (SSE2 or
     /// AVX, chosen at run time), four elsewhere.

@@ -708,6 +708,13 @@ impl<O: Origin> Job<'_, '_, O> {
         add: &mut impl FnMut(&SampleResult),
     ) {
         #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        if let Some(avx512) = crate::simd::Avx512::detect() {
+            return avx512.run(
+                #[inline(always)]
+                |avx512| self.samples_from(avx512, pixel, first, count, add),
+            );
+        }
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
         if let Some(avx) = crate::simd::Avx::detect() {
             return avx.run(
                 #[inline(always)]

@@ -122,7 +122,7 @@ fn write_ppm(path: &str, image: &[[f32; 3]]) {
 fn main() {
     let usage = || -> ! {
         eprintln!(
-            "usage: ember-determinism [--threads N] [--tile S] [--ppm PREFIX] [--simd auto|baseline]  (N, S >= 1)"
+            "usage: ember-determinism [--threads N] [--tile S] [--ppm PREFIX] [--simd auto|avx2|baseline]  (N, S >= 1)"
         );
         std::process::exit(2);
     };
@@ -139,9 +139,13 @@ fn main() {
                 tile = Some(s.unwrap_or_else(|| usage()));
             }
             ("--ppm", Some(p)) => ppm = Some(p),
-            // The ray queries' instructions (`ember_kernel::simd`): AVX2 where the CPU has it,
-            // or the build's baseline only.
+            // The ray queries' instructions (`ember_kernel::simd`): AVX-512 or AVX2 where the
+            // CPU has it, at most AVX2, or the build's baseline only.
             ("--simd", Some(s)) if s == "auto" => {}
+            ("--simd", Some(s)) if s == "avx2" => {
+                #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+                ember_kernel::simd::limit_to_avx2();
+            }
             ("--simd", Some(s)) if s == "baseline" => {
                 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
                 ember_kernel::simd::limit_to_baseline();
