@@ -87,13 +87,16 @@ pub trait PixelSamples: Sampler {
 
     /// `out[k][lane]` = dimension `dimension + k` of sample `indices[lane]` for the lanes of
     /// `live`, drawn as one draw of `N` (1 or 2) numbers ([`Sampler::next_1d`],
-    /// [`Sampler::next_2d`]); by default lane after lane.
+    /// [`Sampler::next_2d`]); by default lane after lane. `lane_hashes`: the caller's
+    /// instructions multiply 64-bit integers in lanes ([`Isa::LANE_HASHES`]), which changes how
+    /// the numbers are computed, never what they are.
     #[inline(always)]
     fn draw_lanes<const N: usize>(
         &mut self,
         dimension: u32,
         indices: &[u32; BATCH],
         live: u32,
+        _lane_hashes: bool,
         out: &mut [[f32; BATCH]; N],
     ) {
         for lane in lanes_of(live) {
@@ -122,9 +125,10 @@ impl PixelSamples for ZSobolPixelSampler {
         dimension: u32,
         indices: &[u32; BATCH],
         live: u32,
+        lane_hashes: bool,
         out: &mut [[f32; BATCH]; N],
     ) {
-        ZSobolPixelSampler::draw_lanes(self, dimension, indices, live, out);
+        ZSobolPixelSampler::draw_lanes(self, dimension, indices, live, lane_hashes, out);
     }
 }
 
@@ -283,13 +287,15 @@ impl PixelSamples for ZSobolPixels {
         dimension: u32,
         indices: &[u32; BATCH],
         live: u32,
+        lane_hashes: bool,
         out: &mut [[f32; BATCH]; N],
     ) {
         let mut mortons = [0u64; BATCH];
         for lane in lanes_of(live) {
             mortons[lane] = self.morton_index(indices[lane]);
         }
-        self.layout.draw_lanes_at(&mortons, dimension, live, out);
+        self.layout
+            .draw_lanes_at(&mortons, dimension, live, lane_hashes, out);
     }
 }
 
@@ -385,7 +391,7 @@ const PAIRS: u32 = 1 << dims::LIGHT_POSITION | 1 << dims::BSDF_DIRECTION;
 /// Draws the numbers the lanes of `live` need at the bounce whose dimensions start at `base`:
 /// `offsets` (bit `o`: offset `o` of [`dims`]) for every lane.
 #[inline(always)]
-fn draw_bounce<P: PixelSamples>(
+fn draw_bounce<I: Isa, P: PixelSamples>(
     pixel: &mut P,
     indices: &[u32; BATCH],
     live: u32,
@@ -403,12 +409,12 @@ fn draw_bounce<P: PixelSamples>(
         // Drawn in place (`PAIRS` are never at the last offset).
         if PAIRS >> offset & 1 != 0 {
             if let Ok(pair) = <&mut [[f32; BATCH]; 2]>::try_from(&mut numbers.values[at..at + 2]) {
-                pixel.draw_lanes::<2>(base + offset, indices, live, pair);
+                pixel.draw_lanes::<2>(base + offset, indices, live, I::LANE_HASHES, pair);
             }
             o &= !(1 << (offset + 1));
         } else if let Ok(one) = <&mut [[f32; BATCH]; 1]>::try_from(&mut numbers.values[at..at + 1])
         {
-            pixel.draw_lanes::<1>(base + offset, indices, live, one);
+            pixel.draw_lanes::<1>(base + offset, indices, live, I::LANE_HASHES, one);
         }
     }
 }
@@ -828,7 +834,7 @@ impl<O: Origin> Job<'_, '_, O> {
             let vector = if in_lanes { live & state.diffuse } else { 0 };
             let scalar = live & !vector;
             let offsets = bounce_offsets(strategy, settings, bounces, &state.bsdf, live);
-            draw_bounce(pixel, &indices, live, base, offsets, &mut numbers);
+            draw_bounce::<I, P>(pixel, &indices, live, base, offsets, &mut numbers);
             let values = &numbers.values;
             // Each lane's next-event estimate, then all their shadow rays.
             let mut shadow_scalar = 0u32;

@@ -167,6 +167,37 @@ const PERMUTATIONS: [[u8; 4]; 24] = [
     [3, 0, 1, 2],
 ];
 
+/// [`PERMUTATIONS`] packed two bits an entry, a byte a permutation, eight permutations a word:
+/// permutation `p` is byte `p % 8` of word `p / 8`. So a lookup is a selection among three
+/// words and a shift, which a loop over SIMD lanes computes without a gather.
+const PERMUTATION_BITS: [u64; 3] = {
+    let mut w = [0u64; 3];
+    let mut p = 0;
+    while p < 24 {
+        let mut k = 0;
+        while k < 4 {
+            w[p / 8] |= (PERMUTATIONS[p][k] as u64) << (8 * (p % 8) + 2 * k);
+            k += 1;
+        }
+        p += 1;
+    }
+    w
+};
+
+/// `PERMUTATIONS[p][digit]` (`p < 24`, `digit < 4`), branch-free ([`PERMUTATION_BITS`]).
+#[inline(always)]
+const fn permuted_digit(p: usize, digit: u64) -> u64 {
+    let p = p as u64;
+    let word = if p < 8 {
+        PERMUTATION_BITS[0]
+    } else if p < 16 {
+        PERMUTATION_BITS[1]
+    } else {
+        PERMUTATION_BITS[2]
+    };
+    (word >> (8 * (p & 7) + 2 * digit)) & 3
+}
+
 /// Interleaves the bits of `x` (even bits) and `y` (odd bits).
 #[inline]
 #[must_use]
@@ -546,6 +577,7 @@ impl ZSobolPixelSampler {
         dimension: u32,
         indices: &[u32; DRAW_LANES],
         live: u32,
+        lane_hashes: bool,
         out: &mut [[f32; DRAW_LANES]; N],
     ) {
         let (_, key, pixel_part) = self.memo(dimension);
@@ -569,6 +601,7 @@ impl ZSobolPixelSampler {
             key,
             lanes,
             self.layout.sample_base4_digits(),
+            lane_hashes,
         );
         let mut points = [[0u32; DRAW_LANES]; N];
         // Dimension 0's point, reversed, is the index; dimension 1's depends on the bytes of the
@@ -599,21 +632,50 @@ impl ZSobolLayout {
     /// The permuted base-4 digits below digit `to` of the Morton indices `mortons[lane]`, and
     /// the odd base-2 digit at the bottom when `log2 spp` is odd, for the lanes of `lanes`
     /// (the rest are 0): [`Self::sample_part`] with `to` the sample digits'
-    /// ([`Self::sample_base4_digits`]), [`Self::sample_index`] with `to` all of them. A digit's
-    /// permutation depends on the digits above it, which neighbouring samples share (a pixel's
-    /// samples, and neighbouring pixels above their lowest digits): it is chosen once per run
-    /// of lanes with the same higher digits, not once per lane.
-    #[inline]
+    /// ([`Self::sample_base4_digits`]), [`Self::sample_index`] with `to` all of them. With
+    /// `lane_hashes` (the caller's instructions multiply 64-bit integers in SIMD lanes:
+    /// [`crate::simd::Isa::LANE_HASHES`]) in lanes, branch-free; otherwise each digit's
+    /// permutation is chosen once per run of lanes that share the digits above it. The same
+    /// parts either way. Always inlined, to be compiled with the caller's instructions.
+    #[inline(always)]
     fn permuted_digits_lanes(
         &self,
         mortons: &[u64; DRAW_LANES],
         key: u64,
         lanes: u32,
         to: u32,
+        lane_hashes: bool,
     ) -> [u64; DRAW_LANES] {
         let odd = self.log2_spp & 1;
         let mut parts = [0u64; DRAW_LANES];
         let mut i = to;
+        if lane_hashes {
+            // Every lane computes every digit's permutation: branch-free loops over the lanes,
+            // which the compiler vectorises (AVX-512's 64-bit multiplies, the permutation a
+            // selection and a shift: `permuted_digit`).
+            while i > odd {
+                i -= 1;
+                let shift = 2 * i - odd;
+                for (part, &m) in parts.iter_mut().zip(mortons) {
+                    let p = permutation_of(m >> (shift + 2), key);
+                    *part |= permuted_digit(p, (m >> shift) & 3) << shift;
+                }
+            }
+            if odd == 1 {
+                for (part, &m) in parts.iter_mut().zip(mortons) {
+                    *part |= (m & 1) ^ (permutation_hash(m >> 1, key) >> 63);
+                }
+            }
+            for (lane, part) in parts.iter_mut().enumerate() {
+                if lanes >> lane & 1 == 0 {
+                    *part = 0;
+                }
+            }
+            return parts;
+        }
+        // Without 64-bit multiplies in lanes: each digit's permutation chosen once per run of
+        // lanes with the same higher digits (a pixel's samples, and neighbouring pixels above
+        // their lowest digits share them).
         while i > odd {
             i -= 1;
             let shift = 2 * i - odd;
@@ -678,11 +740,12 @@ impl ZSobolLayout {
         mortons: &[u64; DRAW_LANES],
         dimension: u32,
         live: u32,
+        lane_hashes: bool,
         out: &mut [[f32; DRAW_LANES]; N],
     ) {
         let key = self.dimension_key(dimension);
         let lanes = live & ((1 << DRAW_LANES) - 1);
-        let index = self.permuted_digits_lanes(mortons, key, lanes, self.base4_digits);
+        let index = self.permuted_digits_lanes(mortons, key, lanes, self.base4_digits, lane_hashes);
         let mut points = [[0u32; DRAW_LANES]; N];
         for lane in lanes_of(lanes) {
             for (k, point) in points.iter_mut().enumerate() {
@@ -756,6 +819,22 @@ mod tests {
         assert_eq!(sobol_u32(3, 1), 0x4000_0000);
         for i in (0..100_000u64).chain([u64::from(u32::MAX), 0xDEAD_BEEF, 1 << 40]) {
             assert_eq!(sobol_u32(i, 1), sobol_1_by_columns(i), "{i}");
+        }
+    }
+
+    #[test]
+    fn the_packed_permutations_are_the_table() {
+        for (p, perm) in PERMUTATIONS.iter().enumerate() {
+            for (digit, &v) in perm.iter().enumerate() {
+                assert_eq!(permuted_digit(p, digit as u64), u64::from(v), "{p} {digit}");
+            }
+            // Each is a permutation: the 24 are distinct and hold 0..4 once each.
+            let mut seen = [false; 4];
+            perm.iter().for_each(|&v| seen[usize::from(v)] = true);
+            assert!(seen.iter().all(|&s| s), "{perm:?}");
+        }
+        for (a, pa) in PERMUTATIONS.iter().enumerate() {
+            assert!(PERMUTATIONS[..a].iter().all(|pb| pb != pa), "{pa:?} twice");
         }
     }
 
@@ -1016,6 +1095,17 @@ mod tests {
     /// not), counts whose indices leave the lowest byte (the shared Sobol' bytes), films of a
     /// pixel and of many, lane masks with gaps, indices that are not consecutive or repeat,
     /// deep dimensions (memo evictions) and, in release builds, indices past the layout.
+    /// Lane masks, dimensions and both ways of permuting the digits in lanes.
+    fn lane_cases() -> impl Iterator<Item = (u32, u32, bool)> {
+        [0xFFu32, 0xA5, 0x01, 0x80, 0x3C]
+            .into_iter()
+            .flat_map(|live| {
+                [0u32, 1, 2, 7, 130, 1000]
+                    .into_iter()
+                    .flat_map(move |dim| [false, true].map(|h| (live, dim, h)))
+            })
+    }
+
     #[test]
     fn lane_draws_are_the_pixel_samplers_draws() {
         let mut checked = 0usize;
@@ -1040,35 +1130,29 @@ mod tests {
                     let mut lanes = layout.pixel_sampler(x, y);
                     let mut one = layout.pixel_sampler(x, y);
                     for indices in &index_sets {
-                        for live in [0xFFu32, 0xA5, 0x01, 0x80, 0x3C] {
-                            for dim in [0u32, 1, 2, 7, 130, 1000] {
-                                let mut pair = [[-1.0f32; DRAW_LANES]; 2];
-                                let mut single = [[-1.0f32; DRAW_LANES]; 1];
-                                lanes.draw_lanes::<2>(dim, indices, live, &mut pair);
-                                lanes.draw_lanes::<1>(dim, indices, live, &mut single);
-                                for lane in 0..DRAW_LANES {
-                                    if live >> lane & 1 == 0 {
-                                        assert_eq!(pair[0][lane], -1.0);
-                                        assert_eq!(single[0][lane], -1.0);
-                                        continue;
-                                    }
-                                    one.start_sample(indices[lane], dim);
-                                    let want = one.next_2d();
-                                    one.start_sample(indices[lane], dim);
-                                    let want_1 = one.next_1d();
-                                    let what = std::format!(
-                                        "spp {spp} film {w}x{h} pixel ({x}, {y}) index {} dim {dim}",
+                        for (live, dim, lane_hashes) in lane_cases() {
+                            let mut pair = [[-1.0f32; DRAW_LANES]; 2];
+                            let mut single = [[-1.0f32; DRAW_LANES]; 1];
+                            lanes.draw_lanes::<2>(dim, indices, live, lane_hashes, &mut pair);
+                            lanes.draw_lanes::<1>(dim, indices, live, lane_hashes, &mut single);
+                            for lane in 0..DRAW_LANES {
+                                if live >> lane & 1 == 0 {
+                                    assert_eq!(pair[0][lane], -1.0);
+                                    assert_eq!(single[0][lane], -1.0);
+                                    continue;
+                                }
+                                one.start_sample(indices[lane], dim);
+                                let want = one.next_2d();
+                                one.start_sample(indices[lane], dim);
+                                let want_1 = one.next_1d();
+                                let what = std::format!(
+                                        "spp {spp} film {w}x{h} pixel ({x}, {y}) index {} dim {dim} lane hashes {lane_hashes}",
                                         indices[lane]
                                     );
-                                    assert_eq!(pair[0][lane].to_bits(), want.x.to_bits(), "{what}");
-                                    assert_eq!(pair[1][lane].to_bits(), want.y.to_bits(), "{what}");
-                                    assert_eq!(
-                                        single[0][lane].to_bits(),
-                                        want_1.to_bits(),
-                                        "{what}"
-                                    );
-                                    checked += 1;
-                                }
+                                assert_eq!(pair[0][lane].to_bits(), want.x.to_bits(), "{what}");
+                                assert_eq!(pair[1][lane].to_bits(), want.y.to_bits(), "{what}");
+                                assert_eq!(single[0][lane].to_bits(), want_1.to_bits(), "{what}");
+                                checked += 1;
                             }
                         }
                     }
