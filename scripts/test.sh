@@ -41,16 +41,21 @@ echo "== cargo clippy"
 cargo clippy --workspace --all-targets --release -- -D warnings
 echo "== cargo test (release: the statistical tests run too)"
 cargo test --workspace --release
-echo "== the AVX lanes of the shipped binary are inlined (no x86 intrinsic as a function)"
+echo "== the AVX lanes of the shipped binary and the C API are inlined (no x86 intrinsic as a function)"
 # An intrinsic that LLVM leaves out of its AVX function (a closure not inlined into
 # `Avx::run`'s function) becomes a call per lane operation: _mm256_mul_ps as a function cost
 # a batched render 11% (2026-12-07). The portable build compiles AVX code only in those
 # functions, so any SSE/AVX intrinsic symbol in `ember` is such a call.
+# The C API's static library is checked the same way: embedders get its lanes.
 cargo build --release -p ember-cli --bin ember
-if nm -C "$CARGO_TARGET_DIR/release/ember" | grep -E 'core_arch::x86::(sse[0-9a-z]*|avx[0-9a-z]*|fma)::_mm'; then
-    echo "error: x86 intrinsics left out of line in release/ember (above)" >&2
-    exit 1
-fi
+cargo build --release -p ember-capi
+for artefact in ember libember_capi.a; do
+    symbols="$(nm -C "$CARGO_TARGET_DIR/release/$artefact" 2>/dev/null)"
+    if grep -E 'core_arch::x86::(sse[0-9a-z]*|avx[0-9a-z]*|fma)::_mm' <<<"$symbols"; then
+        echo "error: x86 intrinsics left out of line in release/$artefact (above)" >&2
+        exit 1
+    fi
+done
 echo "== determinism across builds and targets (scripts/determinism.sh)"
 ./scripts/determinism.sh
 echo "== the kernel built for AVX and for aarch64 (kernel/src/bvh/lanes.rs): clippy, unit, BVH and stress suites"
