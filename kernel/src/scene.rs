@@ -539,6 +539,9 @@ impl<'a> SceneView<'a> {
                     t_max,
                     lanes | second << GROUP_WIDTH,
                 ) {
+                    // (The same loop as the one group's below, spelt out: an iterator over
+                    // the hits' lanes for both, `core::iter::from_fn`, rendered the Cornell
+                    // box 3% slower, 2026-12-07.)
                     let mut mask = hits.mask;
                     while mask != 0 {
                         let lane = mask.trailing_zeros() as usize;

@@ -449,6 +449,68 @@ mod avx {
         }
     }
 
+    /// The six comparisons of [`Lanes`] through the type's `cmp::<PREDICATE>` (ordered
+    /// predicates, and unordered not-equal as `cmpneqps`).
+    macro_rules! comparisons {
+        () => {
+            #[inline(always)]
+            fn simd_eq(self, b: Self) -> Self {
+                self.cmp::<_CMP_EQ_OQ>(b)
+            }
+
+            #[inline(always)]
+            fn simd_ne(self, b: Self) -> Self {
+                self.cmp::<_CMP_NEQ_UQ>(b)
+            }
+
+            #[inline(always)]
+            fn simd_lt(self, b: Self) -> Self {
+                self.cmp::<_CMP_LT_OQ>(b)
+            }
+
+            #[inline(always)]
+            fn simd_le(self, b: Self) -> Self {
+                self.cmp::<_CMP_LE_OQ>(b)
+            }
+
+            #[inline(always)]
+            fn simd_gt(self, b: Self) -> Self {
+                self.cmp::<_CMP_GT_OQ>(b)
+            }
+
+            #[inline(always)]
+            fn simd_ge(self, b: Self) -> Self {
+                self.cmp::<_CMP_GE_OQ>(b)
+            }
+        };
+    }
+
+    /// `+=`, `*=` and `&=` through `+`, `*` and `&`.
+    macro_rules! assignments {
+        (impl<$($p:ident: $bound:ident)?> for $t:ty) => {
+            impl<$($p: $bound)?> AddAssign for $t {
+                #[inline(always)]
+                fn add_assign(&mut self, b: Self) {
+                    *self = *self + b;
+                }
+            }
+
+            impl<$($p: $bound)?> MulAssign for $t {
+                #[inline(always)]
+                fn mul_assign(&mut self, b: Self) {
+                    *self = *self * b;
+                }
+            }
+
+            impl<$($p: $bound)?> BitAndAssign for $t {
+                #[inline(always)]
+                fn bitand_assign(&mut self, b: Self) {
+                    *self = *self & b;
+                }
+            }
+        };
+    }
+
     /// Eight lanes in one AVX register; made only with a token `T` that proves AVX2: [`Avx`],
     /// or [`Avx512`] (the same instructions, compiled into the AVX-512 functions).
     #[derive(Clone, Copy, Debug)]
@@ -487,26 +549,7 @@ mod avx {
     binary!(BitAnd, bitand, _mm256_and_ps);
     binary!(BitOr, bitor, _mm256_or_ps);
 
-    impl<T: AvxToken> AddAssign for Avx8<T> {
-        #[inline(always)]
-        fn add_assign(&mut self, b: Self) {
-            *self = *self + b;
-        }
-    }
-
-    impl<T: AvxToken> MulAssign for Avx8<T> {
-        #[inline(always)]
-        fn mul_assign(&mut self, b: Self) {
-            *self = *self * b;
-        }
-    }
-
-    impl<T: AvxToken> BitAndAssign for Avx8<T> {
-        #[inline(always)]
-        fn bitand_assign(&mut self, b: Self) {
-            *self = *self & b;
-        }
-    }
+    assignments!(impl<T: AvxToken> for Avx8<T>);
 
     impl<T: AvxToken> Not for Avx8<T> {
         type Output = Self;
@@ -554,35 +597,7 @@ mod avx {
             unsafe { _mm256_movemask_ps(self.0) as u32 }
         }
 
-        #[inline(always)]
-        fn simd_eq(self, b: Self) -> Self {
-            self.cmp::<_CMP_EQ_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_ne(self, b: Self) -> Self {
-            self.cmp::<_CMP_NEQ_UQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_lt(self, b: Self) -> Self {
-            self.cmp::<_CMP_LT_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_le(self, b: Self) -> Self {
-            self.cmp::<_CMP_LE_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_gt(self, b: Self) -> Self {
-            self.cmp::<_CMP_GT_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_ge(self, b: Self) -> Self {
-            self.cmp::<_CMP_GE_OQ>(b)
-        }
+        comparisons!();
 
         #[inline(always)]
         fn abs(self) -> Self {
@@ -689,26 +704,7 @@ mod avx {
     binary16!(BitAnd, bitand, _mm512_and_ps);
     binary16!(BitOr, bitor, _mm512_or_ps);
 
-    impl AddAssign for Avx16 {
-        #[inline(always)]
-        fn add_assign(&mut self, b: Self) {
-            *self = *self + b;
-        }
-    }
-
-    impl MulAssign for Avx16 {
-        #[inline(always)]
-        fn mul_assign(&mut self, b: Self) {
-            *self = *self * b;
-        }
-    }
-
-    impl BitAndAssign for Avx16 {
-        #[inline(always)]
-        fn bitand_assign(&mut self, b: Self) {
-            *self = *self & b;
-        }
-    }
+    assignments!(impl<> for Avx16);
 
     impl Not for Avx16 {
         type Output = Self;
@@ -774,35 +770,7 @@ mod avx {
             u32::from(unsafe { _mm512_movepi32_mask(_mm512_castps_si512(self.0)) })
         }
 
-        #[inline(always)]
-        fn simd_eq(self, b: Self) -> Self {
-            self.cmp::<_CMP_EQ_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_ne(self, b: Self) -> Self {
-            self.cmp::<_CMP_NEQ_UQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_lt(self, b: Self) -> Self {
-            self.cmp::<_CMP_LT_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_le(self, b: Self) -> Self {
-            self.cmp::<_CMP_LE_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_gt(self, b: Self) -> Self {
-            self.cmp::<_CMP_GT_OQ>(b)
-        }
-
-        #[inline(always)]
-        fn simd_ge(self, b: Self) -> Self {
-            self.cmp::<_CMP_GE_OQ>(b)
-        }
+        comparisons!();
 
         #[inline(always)]
         fn abs(self) -> Self {
