@@ -287,8 +287,8 @@ impl<'a> SceneView<'a> {
 
     /// Closest hit along the ray.
     ///
-    /// Runs in AVX2 lanes where the CPU has them, in the build's baseline lanes otherwise
-    /// ([`crate::simd`]); the hit is the same either way ([`Self::intersect_in`]).
+    /// Runs in AVX-512 or AVX2 lanes where the CPU has them, in the build's baseline lanes
+    /// otherwise ([`crate::simd`]); the hit is the same either way ([`Self::intersect_in`]).
     #[inline]
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
@@ -343,8 +343,8 @@ impl<'a> SceneView<'a> {
         best
     }
 
-    /// Whether anything blocks the ray before `ray.t_max` (in AVX2 lanes where the CPU has
-    /// them, as [`Self::intersect`]).
+    /// Whether anything blocks the ray before `ray.t_max` (in AVX-512 or AVX2 lanes where the
+    /// CPU has them, as [`Self::intersect`]).
     #[inline]
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {

@@ -101,7 +101,7 @@ impl SurfaceLanes {
 impl SceneView<'_> {
     /// [`Self::interaction`] of `hits[l]` for `rays[l]` in each lane `l` whose bit is set in
     /// `lanes` and whose hit is `Some` (`None` in the others), computed eight at a time in SIMD
-    /// lanes, with AVX where the CPU has it: the same interactions, bit for bit.
+    /// lanes, with AVX-512 or AVX2 where the CPU has it: the same interactions, bit for bit.
     #[inline]
     #[must_use]
     pub fn interactions(
