@@ -343,6 +343,27 @@ impl<'a> SceneView<'a> {
         best
     }
 
+    /// [`Self::intersect`] from code already running with the instructions `isa`: a direct call
+    /// of the query compiled for them ([`Isa::call`]), without finding the CPU's level again.
+    #[inline(always)]
+    #[must_use]
+    pub fn intersect_with<I: Isa>(&self, isa: I, ray: &Ray) -> Option<Hit> {
+        isa.call(
+            #[inline(always)]
+            |isa| self.intersect_in(isa, ray),
+        )
+    }
+
+    /// [`Self::occluded`] from code already running with `isa`, as [`Self::intersect_with`].
+    #[inline(always)]
+    #[must_use]
+    pub fn occluded_with<I: Isa>(&self, isa: I, ray: &Ray) -> bool {
+        isa.call(
+            #[inline(always)]
+            |isa| self.occluded_in(isa, ray),
+        )
+    }
+
     /// Whether anything blocks the ray before `ray.t_max` (in AVX-512 or AVX2 lanes where the
     /// CPU has them, as [`Self::intersect`]).
     #[inline]

@@ -654,7 +654,7 @@ impl Origin for CameraOrigin<'_> {
         } else {
             core::array::from_fn(|l| {
                 (used >> l & 1 != 0)
-                    .then(|| scene.intersect(&camera_rays[l]))
+                    .then(|| scene.intersect_with(isa, &camera_rays[l]))
                     .flatten()
             })
         };
@@ -890,8 +890,13 @@ impl<O: Origin> Job<'_, '_, O> {
                 results[lane].rays += 1;
             }
             let packet = bounces < packet_segments;
-            let occluded =
-                trace_shadows(scene, &shadow_rays, shadow_scalar | shadow_vector, packet);
+            let occluded = trace_shadows(
+                isa,
+                scene,
+                &shadow_rays,
+                shadow_scalar | shadow_vector,
+                packet,
+            );
             for lane in lanes_of(shadow_scalar) {
                 if let (Some(path), Some(shadow)) = (paths[lane].as_mut(), shadows[lane].as_ref()) {
                     path.add_light(shadow, occluded >> lane & 1 == 0);
@@ -948,7 +953,7 @@ impl<O: Origin> Job<'_, '_, O> {
             for lane in lanes_of(live) {
                 results[lane].rays += 1;
             }
-            let hits = trace_next(scene, settings, &nexts, live, packet);
+            let hits = trace_next(isa, scene, settings, &nexts, live, packet);
             let rays = rays_of(&nexts, |n| n.ray);
             let prev_p = state.si.p;
             let arrived = scene.interactions_in(isa, &rays, &hits, live, &mut state.si);
@@ -1016,18 +1021,25 @@ fn rays_of<T>(queries: &[Option<T>; BATCH], ray: impl Fn(&T) -> Ray) -> [Ray; BA
 
 /// Whether the shadow rays of `lanes` are occluded (bits), traced as a packet if `packet`.
 #[inline(always)]
-fn trace_shadows(scene: &SceneView<'_>, rays: &[Ray; BATCH], lanes: u32, packet: bool) -> u32 {
+fn trace_shadows<I: Isa>(
+    isa: I,
+    scene: &SceneView<'_>,
+    rays: &[Ray; BATCH],
+    lanes: u32,
+    packet: bool,
+) -> u32 {
     if packet && lanes.count_ones() > 1 {
         return scene.occluded_packet(rays, lanes);
     }
     lanes_of(lanes).fold(0, |m, lane| {
-        m | u32::from(scene.occluded(&rays[lane])) << lane
+        m | u32::from(scene.occluded_with(isa, &rays[lane])) << lane
     })
 }
 
 /// Where the rays of `lanes` land ([`NextRay::trace`]), traced as a packet if `packet`.
 #[inline(always)]
-fn trace_next(
+fn trace_next<I: Isa>(
+    isa: I,
     scene: &SceneView<'_>,
     settings: &PathSettings,
     nexts: &[Option<NextRay>; BATCH],
@@ -1051,7 +1063,8 @@ fn trace_next(
         }
     }
     for lane in lanes_of(rest) {
-        hits[lane] = nexts[lane].and_then(|n| n.trace(scene, settings));
+        hits[lane] = nexts[lane]
+            .and_then(|n| n.trace_by(scene, settings, |ray| scene.intersect_with(isa, ray)));
     }
     hits
 }

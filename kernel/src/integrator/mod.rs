@@ -217,10 +217,23 @@ impl PathSettings {
     #[inline]
     #[must_use]
     pub fn terminal_hit(&self, scene: &SceneView<'_>, ray: &Ray) -> Option<crate::scene::Hit> {
+        self.terminal_hit_by(scene, ray, |ray| scene.intersect(ray))
+    }
+
+    /// [`Self::terminal_hit`] with the closest-hit query `intersect` (the batched path
+    /// tracer's, [`SceneView::intersect_with`]).
+    #[inline]
+    #[must_use]
+    pub fn terminal_hit_by(
+        &self,
+        scene: &SceneView<'_>,
+        ray: &Ray,
+        intersect: impl FnOnce(&Ray) -> Option<crate::scene::Hit>,
+    ) -> Option<crate::scene::Hit> {
         if self.shortcuts.terminal_emitter_test && !scene.may_hit_emitter(ray) {
             return None;
         }
-        let hit = scene.intersect(ray)?;
+        let hit = intersect(ray)?;
         let material = scene.triangle_materials[hit.triangle as usize];
         scene.material(material).is_emissive().then_some(hit)
     }

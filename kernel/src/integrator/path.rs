@@ -399,10 +399,23 @@ impl NextRay {
     #[inline(always)]
     #[must_use]
     pub fn trace(&self, scene: &SceneView<'_>, settings: &PathSettings) -> Option<Hit> {
+        self.trace_by(scene, settings, |ray| scene.intersect(ray))
+    }
+
+    /// [`Self::trace`] with the closest-hit query `intersect` (the batched path tracer's,
+    /// [`SceneView::intersect_with`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn trace_by(
+        &self,
+        scene: &SceneView<'_>,
+        settings: &PathSettings,
+        intersect: impl FnOnce(&Ray) -> Option<Hit>,
+    ) -> Option<Hit> {
         if self.terminal {
-            settings.terminal_hit(scene, &self.ray)
+            settings.terminal_hit_by(scene, &self.ray, intersect)
         } else {
-            scene.intersect(&self.ray)
+            intersect(&self.ray)
         }
     }
 }
