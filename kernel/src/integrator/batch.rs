@@ -248,18 +248,28 @@ pub struct ZSobolPixels {
     y: u32,
     span: Span,
     sampler: ZSobolSampler,
+    /// The Morton indices of the numbers last drawn in lanes (`mortons[lane]` of
+    /// `numbers[lane]`): a batch draws every dimension for the same numbers, so they are found
+    /// once per batch rather than once per draw.
+    numbers: [u32; BATCH],
+    mortons: [u64; BATCH],
 }
 
 impl ZSobolPixels {
     #[must_use]
     pub fn run(layout: &ZSobolLayout, x: u32, y: u32, span: Span) -> Self {
-        Self {
+        let numbers = [0; BATCH];
+        let mut run = Self {
             layout: *layout,
             x,
             y,
             span,
             sampler: layout.sampler_at(x, y, 0, 0),
-        }
+            numbers,
+            mortons: [0; BATCH],
+        };
+        run.mortons = numbers.map(|j| run.morton_index(j));
+        run
     }
 
     /// The Morton index of number `j`.
@@ -290,12 +300,15 @@ impl PixelSamples for ZSobolPixels {
         lane_hashes: bool,
         out: &mut [[f32; BATCH]; N],
     ) {
-        let mut mortons = [0u64; BATCH];
-        for lane in lanes_of(live) {
-            mortons[lane] = self.morton_index(indices[lane]);
+        if *indices != self.numbers {
+            let mut mortons = [0; BATCH];
+            for (morton, &j) in mortons.iter_mut().zip(indices) {
+                *morton = self.morton_index(j);
+            }
+            (self.numbers, self.mortons) = (*indices, mortons);
         }
         self.layout
-            .draw_lanes_at(&mortons, dimension, live, lane_hashes, out);
+            .draw_lanes_at(&self.mortons, dimension, live, lane_hashes, out);
     }
 }
 
