@@ -1120,11 +1120,6 @@ mod tests {
         }
     }
 
-    /// The lane-wise draw gives each lane what the pixel sampler started at that lane's sample
-    /// and dimension draws, bit for bit: odd and even sample counts (one digit flipped or
-    /// not), counts whose indices leave the lowest byte (the shared Sobol' bytes), films of a
-    /// pixel and of many, lane masks with gaps, indices that are not consecutive or repeat,
-    /// deep dimensions (memo evictions) and, in release builds, indices past the layout.
     /// Lane masks, dimensions and both ways of permuting the digits in lanes.
     fn lane_cases() -> impl Iterator<Item = (u32, u32, bool)> {
         [0xFFu32, 0xA5, 0x01, 0x80, 0x3C]
@@ -1136,6 +1131,11 @@ mod tests {
             })
     }
 
+    /// The lane-wise draw gives each lane what the pixel sampler started at that lane's sample
+    /// and dimension draws, bit for bit: odd and even sample counts (one digit flipped or
+    /// not), counts whose indices leave the lowest byte (the shared Sobol' bytes), films of a
+    /// pixel and of many, lane masks with gaps, indices that are not consecutive or repeat,
+    /// deep dimensions (memo evictions) and, in release builds, indices past the layout.
     #[test]
     fn lane_draws_are_the_pixel_samplers_draws() {
         let mut checked = 0usize;
