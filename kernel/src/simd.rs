@@ -150,8 +150,9 @@ pub trait Isa: Copy {
 
     /// The watertight test of two consecutive triangle groups at once, in lanes twice a
     /// group's width (AVX-512's sixteen), lane `GROUP_WIDTH + i` being lane `i` of the second
-    /// group; `None` where this instruction set has no such lanes, and the groups are tested
-    /// one after the other. The hits are the same bits either way, lane for lane.
+    /// group, written to `hits`; false (and `hits` untouched) where this instruction set has
+    /// no such lanes, and the groups are tested one after the other. The hits are the same bits
+    /// either way, lane for lane.
     #[inline(always)]
     fn intersect_pair(
         self,
@@ -159,8 +160,9 @@ pub trait Isa: Copy {
         _ray: &WatertightRay,
         _t_max: f32,
         _lanes: u32,
-    ) -> Option<PairHits> {
-        None
+        _hits: &mut PairHits,
+    ) -> bool {
+        false
     }
 }
 
@@ -416,8 +418,10 @@ mod avx {
             ray: &WatertightRay,
             t_max: f32,
             lanes: u32,
-        ) -> Option<PairHits> {
-            Some(TriangleGroup::intersect_pair(self, pair, ray, t_max, lanes))
+            hits: &mut PairHits,
+        ) -> bool {
+            TriangleGroup::intersect_pair(self, pair, ray, t_max, lanes, hits);
+            true
         }
     }
 

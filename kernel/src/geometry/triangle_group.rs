@@ -79,9 +79,14 @@ impl<const W: usize> TriangleHits<W> {
 
 /// The watertight test of `ray` against `W` triangles at once, `v[vertex][axis]` holding one
 /// triangle per lane, for the lanes of `lanes`, each against `t_max`: the hits of the lanes
-/// decided in f32, and the lanes whose edge function is exactly zero (bits), which the caller
-/// decides with the scalar test's f64 recomputation. The same operations in the same order as
+/// decided in f32, written to `out` (only its mask when there are none), and the lanes whose
+/// edge function is exactly zero (bits, returned), which the caller decides with the scalar
+/// test's f64 recomputation. The same operations in the same order as
 /// [`WatertightRay::intersect`], lane by lane, whatever `W` and `L`.
+///
+/// The hits go to the caller's storage rather than out by value: returned, they were stored in
+/// 32-byte halves and copied on in 64-byte loads that straddled those stores, a failed
+/// store-to-load forward on every group test (3% of a render of `cbox.obj`, AMD Zen 5).
 #[inline(always)]
 fn watertight_lanes<const W: usize, L: crate::simd::Lanes<W>>(
     isa: L::Isa,
@@ -89,7 +94,8 @@ fn watertight_lanes<const W: usize, L: crate::simd::Lanes<W>>(
     t_max: f32,
     lanes: u32,
     v: [[L; 3]; 3],
-) -> (TriangleHits<W>, u32) {
+    out: &mut TriangleHits<W>,
+) -> u32 {
     let splat = |x: f32| L::splat(isa, x);
     let kz = ray.k[2];
     let o = ray.o.to_array();
@@ -132,7 +138,8 @@ fn watertight_lanes<const W: usize, L: crate::simd::Lanes<W>>(
     let mut ok = !(negative & positive) & det.simd_ne(zero) & det.is_finite();
     // Most groups a ray reaches it misses: stop before the distance and its error bound.
     if ok.to_bitmask() & lanes & !on_edge == 0 {
-        return (TriangleHits::NONE, on_edge);
+        out.mask = 0;
+        return on_edge;
     }
     let max = |a: L, b: L| a.fast_max(b);
     let max_z_world = max(max(az.abs(), bz.abs()), cz.abs());
@@ -146,7 +153,8 @@ fn watertight_lanes<const W: usize, L: crate::simd::Lanes<W>>(
     ok &= !(det_neg & (t_scaled.simd_ge(zero) | t_scaled.simd_lt(t_max_det)));
     ok &= !(det_pos & (t_scaled.simd_le(zero) | t_scaled.simd_gt(t_max_det)));
     if ok.to_bitmask() & lanes & !on_edge == 0 {
-        return (TriangleHits::NONE, on_edge);
+        out.mask = 0;
+        return on_edge;
     }
     let inv_det = splat(1.0) / det;
     let b1 = e1 * inv_det;
@@ -165,29 +173,28 @@ fn watertight_lanes<const W: usize, L: crate::simd::Lanes<W>>(
         * (splat(gamma(3)) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
         * inv_det.abs();
     ok &= t.simd_gt(delta_t);
-    let hits = TriangleHits {
-        mask: ok.to_bitmask() & lanes & !on_edge,
-        t: t.to_array(),
-        b1: b1.to_array(),
-        b2: b2.to_array(),
-    };
-    (hits, on_edge)
+    out.mask = ok.to_bitmask() & lanes & !on_edge;
+    out.t = t.to_array();
+    out.b1 = b1.to_array();
+    out.b2 = b2.to_array();
+    on_edge
 }
 
 /// The two-group test of AVX-512 ([`crate::simd::Isa::intersect_pair`]).
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 impl TriangleGroup {
     /// [`Self::intersect`] of two groups at once, in sixteen AVX-512 lanes: lane `i` of
-    /// `pair[1]` is lane `8 + i` of `lanes` and of the hits. The same hits, bit for bit.
+    /// `pair[1]` is lane `8 + i` of `lanes` and of the hits, written to `hits`. The same hits,
+    /// bit for bit.
     #[inline(always)]
-    #[must_use]
     pub fn intersect_pair(
         isa: crate::simd::Avx512,
         pair: [&Self; 2],
         ray: &WatertightRay,
         t_max: f32,
         lanes: u32,
-    ) -> PairHits {
+        hits: &mut PairHits,
+    ) {
         use crate::simd::{Avx16, Avx512};
         // (A function, not a closure, so that it can be always inlined: out of line, the
         // intrinsics it calls would be calls too.)
@@ -205,8 +212,7 @@ impl TriangleGroup {
             load(isa, &a.v[1], &b.v[1]),
             load(isa, &a.v[2], &b.v[2]),
         ];
-        let (mut hits, on_edge) = watertight_lanes(isa, ray, t_max, lanes, v);
-        let mut rest = on_edge;
+        let mut rest = watertight_lanes(isa, ray, t_max, lanes, v, hits);
         while rest != 0 {
             let lane = rest.trailing_zeros() as usize;
             rest &= rest - 1;
@@ -215,7 +221,6 @@ impl TriangleGroup {
                 hits.set(lane, h);
             }
         }
-        hits
     }
 }
 
@@ -304,7 +309,9 @@ macro_rules! triangle_group {
                 #[inline(always)]
                 #[must_use]
                 pub fn intersect(&self, ray: &WatertightRay, t_max: f32, lanes: u32) -> GroupHits {
-                    self.intersect_in::<wide::$lanes>(Baseline, ray, t_max, lanes)
+                    let mut hits = GroupHits::NONE;
+                    self.intersect_into::<wide::$lanes>(Baseline, ray, t_max, lanes, &mut hits);
+                    hits
                 }
 
                 /// [`Self::intersect`] in the lanes `L` of the instruction set `isa`
@@ -318,17 +325,32 @@ macro_rules! triangle_group {
                     t_max: f32,
                     lanes: u32,
                 ) -> GroupHits {
+                    let mut hits = GroupHits::NONE;
+                    self.intersect_into::<L>(isa, ray, t_max, lanes, &mut hits);
+                    hits
+                }
+
+                /// [`Self::intersect_in`] written to `hits` (see `watertight_lanes` for why).
+                #[inline(always)]
+                pub fn intersect_into<L: Lanes<GROUP_WIDTH>>(
+                    &self,
+                    isa: L::Isa,
+                    ray: &WatertightRay,
+                    t_max: f32,
+                    lanes: u32,
+                    hits: &mut GroupHits,
+                ) {
                     // (No `array::map`, which need not be inlined, and must be with AVX.)
                     let load = |k: usize| {
                         let v = &self.v[k];
                         [L::new(isa, v[0]), L::new(isa, v[1]), L::new(isa, v[2])]
                     };
-                    let (hits, on_edge) =
-                        watertight_lanes(isa, ray, t_max, lanes, [load(0), load(1), load(2)]);
-                    self.intersect_on_edge(ray, t_max, on_edge, hits)
+                    let v = [load(0), load(1), load(2)];
+                    let on_edge = watertight_lanes(isa, ray, t_max, lanes, v, hits);
+                    self.intersect_on_edge(ray, t_max, on_edge, hits);
                 }
 
-                /// `hits` with the lanes `on_edge` (an edge function exactly zero in f32)
+                /// The lanes `on_edge` of `hits` (an edge function exactly zero in f32)
                 /// decided by the scalar test, which recomputes their edge functions in f64.
                 #[inline(always)]
                 fn intersect_on_edge(
@@ -336,8 +358,8 @@ macro_rules! triangle_group {
                     ray: &WatertightRay,
                     t_max: f32,
                     on_edge: u32,
-                    mut hits: GroupHits,
-                ) -> GroupHits {
+                    hits: &mut GroupHits,
+                ) {
                     let mut rest = on_edge;
                     while rest != 0 {
                         let lane = rest.trailing_zeros() as usize;
@@ -347,7 +369,6 @@ macro_rules! triangle_group {
                             hits.set(lane, h);
                         }
                     }
-                    hits
                 }
             }
         }
@@ -377,7 +398,7 @@ mod tests {
     macro_rules! group_tests {
         ($module:ident, $group:ident, $lanes:ty, $isa:expr) => {
             mod $module {
-                use super::super::$group::{TriangleGroup, GROUP_WIDTH};
+                use super::super::$group::{GroupHits, TriangleGroup, GROUP_WIDTH};
                 use crate::geometry::triangle::{TriangleHit, WatertightRay};
                 use crate::sampler::{IndependentSampler, Sampler};
                 use glam::Vec3;
@@ -408,7 +429,15 @@ mod tests {
                     let mut hit_lanes = 0;
                     let top = 1 << (GROUP_WIDTH - 1);
                     for lanes in [ALL, 0x5555 & ALL, 0xAAAA & ALL, 0x1, top, 0x0] {
-                        let hits = group.intersect_in::<Lanes>(isa, ray, t_max, lanes);
+                        // Storage holding another test's leftovers: every answer must be
+                        // written.
+                        let mut hits = GroupHits {
+                            mask: u32::MAX,
+                            t: [f32::NAN; GROUP_WIDTH],
+                            b1: [-1.0; GROUP_WIDTH],
+                            b2: [-1.0; GROUP_WIDTH],
+                        };
+                        group.intersect_into::<Lanes>(isa, ray, t_max, lanes, &mut hits);
                         for (lane, &[p0, p1, p2]) in tris.iter().enumerate() {
                             let scalar = if lanes >> lane & 1 != 0 {
                                 ray.intersect(t_max, p0, p1, p2)
@@ -543,7 +572,7 @@ mod tests {
     /// AVX-512's test of two groups at once ([`super::TriangleGroup::intersect_pair`]).
     #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
     mod pair {
-        use super::super::{TriangleGroup, GROUP_WIDTH};
+        use super::super::{PairHits, TriangleGroup, GROUP_WIDTH};
         use crate::geometry::triangle::{TriangleHit, WatertightRay};
         use crate::sampler::{IndependentSampler, Sampler};
         use crate::simd::Avx512;
@@ -572,8 +601,15 @@ mod tests {
             let bits = |h: Option<TriangleHit>| h.map(|h| [h.t, h.b1, h.b2].map(f32::to_bits));
             let mut hit_lanes = 0;
             for lanes in [ALL, 0x5555, 0xAAAA, 0x00FF, 0xFF00, 0x0180, 0x8001, 0x0] {
-                let hits =
-                    TriangleGroup::intersect_pair(isa, [&groups[0], &groups[1]], ray, t_max, lanes);
+                // Storage holding another test's leftovers: every answer must be written.
+                let mut hits = PairHits {
+                    mask: u32::MAX,
+                    t: [f32::NAN; 2 * GROUP_WIDTH],
+                    b1: [-1.0; 2 * GROUP_WIDTH],
+                    b2: [-1.0; 2 * GROUP_WIDTH],
+                };
+                let pair = [&groups[0], &groups[1]];
+                TriangleGroup::intersect_pair(isa, pair, ray, t_max, lanes, &mut hits);
                 for (lane, &[p0, p1, p2]) in tris.iter().enumerate() {
                     let scalar = if lanes >> lane & 1 != 0 {
                         ray.intersect(t_max, p0, p1, p2)

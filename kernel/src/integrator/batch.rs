@@ -665,11 +665,11 @@ impl Origin for CameraOrigin<'_> {
         let hits = if self.packet {
             scene.intersect_packet(&camera_rays, used)
         } else {
-            core::array::from_fn(|l| {
-                (used >> l & 1 != 0)
-                    .then(|| scene.intersect_with(isa, &camera_rays[l]))
-                    .flatten()
-            })
+            let mut hits = [None; BATCH];
+            for lane in lanes_of(used) {
+                scene.intersect_with(isa, &camera_rays[lane], &mut hits[lane]);
+            }
+            hits
         };
         let live = scene.interactions_in(isa, &camera_rays, &hits, used, &mut state.si);
         for lane in lanes_of(live) {
@@ -1076,8 +1076,10 @@ fn trace_next<I: Isa>(
         }
     }
     for lane in lanes_of(rest) {
-        hits[lane] = nexts[lane]
-            .and_then(|n| n.trace_by(scene, settings, |ray| scene.intersect_with(isa, ray)));
+        if let Some(next) = &nexts[lane] {
+            let intersect = |ray: &Ray, hit: &mut Option<Hit>| scene.intersect_with(isa, ray, hit);
+            next.trace_by(scene, settings, intersect, &mut hits[lane]);
+        }
     }
     hits
 }

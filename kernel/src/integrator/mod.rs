@@ -217,25 +217,33 @@ impl PathSettings {
     #[inline]
     #[must_use]
     pub fn terminal_hit(&self, scene: &SceneView<'_>, ray: &Ray) -> Option<crate::scene::Hit> {
-        self.terminal_hit_by(scene, ray, |ray| scene.intersect(ray))
+        let mut hit = None;
+        self.terminal_hit_by(scene, ray, |ray, hit| *hit = scene.intersect(ray), &mut hit);
+        hit
     }
 
-    /// [`Self::terminal_hit`] with the closest-hit query `intersect` (the batched path
-    /// tracer's, [`SceneView::intersect_with`]).
+    /// [`Self::terminal_hit`] with the closest-hit query `intersect`, which writes its answer
+    /// to the place it is given (the batched path tracer's, [`SceneView::intersect_with`]),
+    /// into `hit`.
     #[inline]
-    #[must_use]
     pub fn terminal_hit_by(
         &self,
         scene: &SceneView<'_>,
         ray: &Ray,
-        intersect: impl FnOnce(&Ray) -> Option<crate::scene::Hit>,
-    ) -> Option<crate::scene::Hit> {
+        intersect: impl FnOnce(&Ray, &mut Option<crate::scene::Hit>),
+        hit: &mut Option<crate::scene::Hit>,
+    ) {
         if self.shortcuts.terminal_emitter_test && !scene.may_hit_emitter(ray) {
-            return None;
+            *hit = None;
+            return;
         }
-        let hit = intersect(ray)?;
-        let material = scene.triangle_materials[hit.triangle as usize];
-        scene.material(material).is_emissive().then_some(hit)
+        intersect(ray, hit);
+        if let Some(h) = hit {
+            let material = scene.triangle_materials[h.triangle as usize];
+            if !scene.material(material).is_emissive() {
+                *hit = None;
+            }
+        }
     }
 
     /// Whether Russian roulette of kind `roulette` is played after `bounces` scattering

@@ -399,23 +399,31 @@ impl NextRay {
     #[inline(always)]
     #[must_use]
     pub fn trace(&self, scene: &SceneView<'_>, settings: &PathSettings) -> Option<Hit> {
-        self.trace_by(scene, settings, |ray| scene.intersect(ray))
+        let mut hit = None;
+        self.trace_by(
+            scene,
+            settings,
+            |ray, hit| *hit = scene.intersect(ray),
+            &mut hit,
+        );
+        hit
     }
 
-    /// [`Self::trace`] with the closest-hit query `intersect` (the batched path tracer's,
-    /// [`SceneView::intersect_with`]).
+    /// [`Self::trace`] with the closest-hit query `intersect`, which writes its answer to the
+    /// place it is given (the batched path tracer's, [`SceneView::intersect_with`]), into
+    /// `hit`.
     #[inline(always)]
-    #[must_use]
     pub fn trace_by(
         &self,
         scene: &SceneView<'_>,
         settings: &PathSettings,
-        intersect: impl FnOnce(&Ray) -> Option<Hit>,
-    ) -> Option<Hit> {
+        intersect: impl FnOnce(&Ray, &mut Option<Hit>),
+        hit: &mut Option<Hit>,
+    ) {
         if self.terminal {
-            settings.terminal_hit_by(scene, &self.ray, intersect)
+            settings.terminal_hit_by(scene, &self.ray, intersect, hit);
         } else {
-            intersect(&self.ray)
+            intersect(&self.ray, hit);
         }
     }
 }
