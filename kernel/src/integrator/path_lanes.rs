@@ -19,8 +19,7 @@ use super::path::{PathState, Roulette};
 use super::PathSettings;
 use crate::bsdf::{Bsdf, SurfaceBsdf};
 use crate::emitter::sample_emitter_lanes;
-use crate::math::{sin_cos, INV_PI};
-use crate::sampler::lanes_of;
+use crate::math::{sin_cos_lanes, INV_PI};
 use crate::scene::SceneView;
 use crate::simd::{Isa, Lanes};
 use crate::surface_lanes::SurfaceLanes;
@@ -371,12 +370,7 @@ pub(super) fn scatter_diffuse<I: Isa>(
         lane(FRAC_PI_4) * (oy / ox),
         lane(FRAC_PI_2) - lane(FRAC_PI_4) * (ox / oy),
     );
-    let theta = theta.to_array();
-    let mut sin = [0.0f32; N];
-    let mut cos = [0.0f32; N];
-    for l in lanes_of(lanes) {
-        (sin[l], cos[l]) = sin_cos(theta[l]);
-    }
+    let (sin, cos) = sin_cos_lanes(&theta.to_array(), lanes);
     let dx = L::<I>::select(centre, zero, r * L::<I>::new(isa, cos));
     let dy = L::<I>::select(centre, zero, r * L::<I>::new(isa, sin));
     let z = max_zero(one - dx * dx - dy * dy, zero).sqrt();

@@ -5,11 +5,13 @@
 mod float;
 mod frame;
 mod pdf;
+mod sincos;
 pub mod warp;
 
 pub use float::{gamma, next_float_down, next_float_up};
 pub use frame::Frame;
 pub use pdf::{AreaPdf, SolidAnglePdf};
+pub use sincos::sin_cos_lanes;
 
 use glam::Vec3;
 
