@@ -69,6 +69,42 @@ fn find_interval(cdf: &[f32], u: f32) -> usize {
     (lo + cdf[lo..hi].partition_point(|&c| c <= target)).min(n - 1)
 }
 
+/// Largest CDF that [`find_intervals`] searches in lanes.
+const LANE_SEARCH_MAX: usize = 16;
+
+/// [`find_interval`] of each lane's `u[l]`, in lanes for a CDF of at most
+/// [`LANE_SEARCH_MAX`] entries: the number of entries `<= u·total` (the same product), counted
+/// by one comparison per entry in every lane instead of a search whose branches go each lane's
+/// own way (mispredicted half the time on a light of two triangles); a search per lane for
+/// longer CDFs. The same indices for the lanes of `lanes` (other lanes: any valid index).
+#[inline(always)]
+fn find_intervals<L: Lanes<LANES>>(
+    isa: L::Isa,
+    cdf: &[f32],
+    u: &[f32; LANES],
+    lanes: u32,
+) -> [usize; LANES] {
+    let n = cdf.len();
+    let mut index = [0usize; LANES];
+    if n > LANE_SEARCH_MAX {
+        for l in lanes_of(lanes) {
+            index[l] = find_interval(cdf, u[l]);
+        }
+        return index;
+    }
+    let target = L::new(isa, *u) * L::splat(isa, cdf[n - 1]);
+    let (zero, one) = (L::splat(isa, 0.0), L::splat(isa, 1.0));
+    // Counts of at most 16 as floats: exact.
+    let mut count = zero;
+    for &c in cdf {
+        count += L::select(L::splat(isa, c).simd_le(target), one, zero);
+    }
+    for (i, c) in index.iter_mut().zip(count.to_array()) {
+        *i = (c as usize).min(n - 1);
+    }
+    index
+}
+
 /// Picks an emissive triangle with `u_select` from the scene's emitter CDF, then a uniform point
 /// on it with `u_pos`. `None` when the scene has no emitter with positive area.
 #[inline]
@@ -140,8 +176,9 @@ pub(crate) fn sample_emitter_lanes<I: Isa>(
     let mut upper = [0.0f32; LANES];
     let mut lower = [0.0f32; LANES];
     let mut triangle = [scene.emitter_triangles[0]; LANES];
+    let index = find_intervals::<L<I>>(isa, cdf, u_select, lanes);
     for l in lanes_of(lanes) {
-        let i = find_interval(cdf, u_select[l]);
+        let i = index[l];
         upper[l] = cdf[i];
         lower[l] = if i > 0 { cdf[i - 1] } else { 0.0 };
         triangle[l] = scene.emitter_triangles[i];
@@ -486,12 +523,29 @@ mod tests {
                 let fixed = [0.0, 0.999_999_94, 0.5];
                 let randoms: [f32; 500] = core::array::from_fn(|_| rnd());
                 let own = cdf.iter().map(|&c| c / cdf[n - 1]).filter(|&u| u < 1.0);
-                for u in fixed.into_iter().chain(randoms).chain(own) {
+                let us: std::vec::Vec<f32> = fixed.into_iter().chain(randoms).chain(own).collect();
+                for &u in &us {
                     assert_eq!(
                         find_interval(cdf, u),
                         reference(cdf, u),
                         "n {n} shape {shape} u {u}"
                     );
+                }
+                // The lanes' search, eight at a time, with a lane left out.
+                for chunk in us.chunks(LANES) {
+                    let mut u = [0.5; LANES];
+                    u[..chunk.len()].copy_from_slice(chunk);
+                    let lanes = ((1u32 << chunk.len()) - 1) & !0b100;
+                    type Eight = <crate::simd::Baseline as Isa>::Eight;
+                    let index = find_intervals::<Eight>(crate::simd::Baseline, cdf, &u, lanes);
+                    for l in lanes_of(lanes) {
+                        assert_eq!(
+                            index[l],
+                            reference(cdf, u[l]),
+                            "n {n} shape {shape} u {}",
+                            u[l]
+                        );
+                    }
                 }
             }
         }
