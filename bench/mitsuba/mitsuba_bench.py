@@ -30,6 +30,14 @@ builds ember. Steps:
    plotting Mitsuba's curves too. -> bench.csv, bench.svg
 6. For equal relative MSE, ember's time over Mitsuba's, interpolated in log-log on each curve's
    lower envelope (a rung counts only if its error is below every faster rung's). -> table.md
+
+With --rounds R (ROUNDS in run.sh), steps 4 and 5 are run R times, Mitsuba's ladders first in
+even rounds and ember's first in odd ones, every round on the rungs of the first (same seeds,
+so the same images and errors), and each rung keeps its fastest time. This instance's speed
+drifts by 5-10% over minutes, for both renderers alike (2026-12-07: a ladder of one build took
+9% longer in one window than minutes later), so a single pass can put the two renderers in
+different windows; alternating the order and keeping the least disturbed time of each rung
+gives both the same treatment.
 """
 import argparse
 import math
@@ -451,8 +459,13 @@ def main():
     ap.add_argument("--ember-samplers", default="independent",
                     help="comma-separated ember samplers, one ladder and table each (independent, zsobol); "
                          "ladders other than the independent one go to bench_<sampler>.csv/.svg")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="runs of every ladder, Mitsuba's and ember's first in turn; each rung keeps its "
+                         "fastest time (the instance's speed drifts over minutes)")
     ap.add_argument("--out", default=HERE)
     args = ap.parse_args()
+    if args.rounds < 1:
+        sys.exit("--rounds must be at least 1")
     global LLVM_TARGET
     LLVM_TARGET = LLVM_TARGETS[args.llvm_target]
 
@@ -550,8 +563,7 @@ def main():
     # 4. Mitsuba ladders: every variant with every sampler (the scene file's sampler swapped;
     # samplers that need square or prime-power counts round the ladder's spp their way, which
     # changes nothing here: only the measured time and error are compared).
-    rows = []
-    series = []  # (column name, ladder label)
+    mitsuba_ladders = []  # (column name, ladder label, scene xml, variant)
     for msampler in args.mitsuba_samplers.split(","):
         sxml = xml
         if msampler != "independent":
@@ -563,7 +575,14 @@ def main():
         for variant in variants:
             name = variant if msampler == "independent" else f"{variant} {msampler}"
             label = f"mitsuba_{variant}" if msampler == "independent" else f"mitsuba_{variant}_{msampler}"
-            log(f"\n== Mitsuba ladder: {name}, {args.threads} threads")
+            mitsuba_ladders.append((name, label, sxml, variant))
+    series = [(name, label) for name, label, _, _ in mitsuba_ladders]
+
+    def run_mitsuba(round_no, last_spp):
+        """One round of every Mitsuba ladder; from the second round on, the first's rungs."""
+        rows = []
+        for name, label, sxml, variant in mitsuba_ladders:
+            log(f"\n== Mitsuba ladder: {name}, {args.threads} threads (round {round_no + 1} of {args.rounds})")
             mi, dr = set_variant(variant, args.threads)
             scene = mi.load_file(sxml)
             scene_sampler = scene.sensors()[0].sampler()
@@ -572,48 +591,114 @@ def main():
                 scene_sampler.set_sample_count(spp)
                 return scene_sampler.sample_count()
 
-            rows += ladder(label, lambda spp, seed: mitsuba_render(mi, dr, scene, spp, seed), args.budget,
-                           args.max_spp, reference_path, args.ember, build, scene_name, pixels,
+            budget, max_spp = args.budget, args.max_spp
+            if label in last_spp:
+                budget, max_spp = math.inf, last_spp[label]
+            rows += ladder(label, lambda spp, seed: mitsuba_render(mi, dr, scene, spp, seed), budget,
+                           max_spp, reference_path, args.ember, build, scene_name, pixels,
                            effective_spp)
-            series.append((name, label))
-    results = os.path.join(args.out, "results.csv")
-    with open(results, "w") as fh:
-        fh.write(CSV_COLUMNS + "\n")
-        for r in rows:
-            fh.write(f"{r['scene']},{r['integrator']},{r['spp']},{r['seconds']:.6f},{r['samples_per_second']:.1f},"
-                     f"nan,{r['rmse']:.6e},{r['rel_mse']:.6e},{r['bias']:.6e}\n")
-    log(f"wrote {results}")
+        return rows
 
-    # 5. ember's ladders (one per sampler) against the same reference, plotted with Mitsuba's.
-    curves = {name: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == label] for name, label in series}
     builds = [("", args.ember, "baseline x86-64 build")]
     if args.ember_native:
         builds.append(("_native", args.ember_native, args.ember_native_name))
-    for (build_suffix, ember, build_name), sampler in (
-            (b, s) for b in builds for s in args.ember_samplers.split(",")):
+    ember_ladders = [(b, s) for b in builds for s in args.ember_samplers.split(",")]
+
+    def ember_dir(build_suffix, sampler, round_no):
         suffix = build_suffix + ("" if sampler == "independent" else f"_{sampler}")
-        out_dir = args.out if not suffix else os.path.join(build, f"ember{suffix}")
-        log(f"\n== ember bench: mis, {sampler} sampler, {build_name}, {args.threads} threads")
-        subprocess.run(
-            [ember, "bench", args.scene, "--reference", reference_path, "--integrators", "mis",
-             "--threads", str(args.threads), "--budget", str(args.budget), "--max-spp", str(args.max_spp),
-             "--sampler", sampler, "--plot-also", results, "-o", out_dir],
-            check=True)
-        if suffix:
-            for f in ("bench.csv", "bench.svg"):
-                shutil.copy(os.path.join(out_dir, f), os.path.join(args.out, f"bench{suffix}.{f.split('.')[1]}"))
-        ember_rows = []
-        with open(os.path.join(out_dir, "bench.csv")) as fh:
+        return os.path.join(build, f"ember{suffix or '_independent'}_round{round_no + 1}")
+
+    def run_ember(round_no, last_spp):
+        """One round of every ember ladder (`ember bench`), each into a folder of its own."""
+        for (build_suffix, ember, build_name), sampler in ember_ladders:
+            out_dir = ember_dir(build_suffix, sampler, round_no)
+            log(f"\n== ember bench: mis, {sampler} sampler, {build_name}, {args.threads} threads "
+                f"(round {round_no + 1} of {args.rounds})")
+            key = (build_suffix, sampler)
+            budget, max_spp = args.budget, args.max_spp
+            if key in last_spp:
+                budget, max_spp = 1e9, last_spp[key]
+            subprocess.run(
+                [ember, "bench", args.scene, "--reference", reference_path, "--integrators", "mis",
+                 "--threads", str(args.threads), "--budget", str(budget), "--max-spp", str(max_spp),
+                 "--sampler", sampler, "--plot-also", os.path.join(args.out, "results.csv"), "-o", out_dir],
+                check=True)
+
+    def read_ember(build_suffix, sampler, round_no):
+        with open(os.path.join(ember_dir(build_suffix, sampler, round_no), "bench.csv")) as fh:
             header = fh.readline().strip().split(",")
-            for line in fh:
-                ember_rows.append(dict(zip(header, line.strip().split(","))))
+            return header, [dict(zip(header, line.strip().split(","))) for line in fh]
+
+    def fastest_mitsuba(mitsuba_rounds):
+        """Each rung of the first round with its fastest round's time (the same images and errors
+        in every round), written to results.csv (which ember's plots read too)."""
+        fastest = {}
+        for rows_r in mitsuba_rounds:
+            for r in rows_r:
+                key = (r["integrator"], r["spp"])
+                if key not in fastest or r["seconds"] < fastest[key]["seconds"]:
+                    fastest[key] = r
+        rows = []
+        for r in mitsuba_rounds[0]:
+            best = dict(fastest[(r["integrator"], r["spp"])])
+            best["samples_per_second"] = pixels * best["spp"] / best["seconds"]
+            rows.append(best)
+        results = os.path.join(args.out, "results.csv")
+        with open(results, "w") as fh:
+            fh.write(CSV_COLUMNS + "\n")
+            for r in rows:
+                fh.write(f"{r['scene']},{r['integrator']},{r['spp']},{r['seconds']:.6f},{r['samples_per_second']:.1f},"
+                         f"nan,{r['rmse']:.6e},{r['rel_mse']:.6e},{r['bias']:.6e}\n")
+        log(f"wrote {results}")
+        return rows
+
+    # The rounds, the order alternating; the rungs of every round after the first are the first's.
+    mitsuba_rounds = []
+    last_mitsuba, last_ember = {}, {}
+    for round_no in range(args.rounds):
+        if round_no % 2 == 0:
+            mitsuba_rounds.append(run_mitsuba(round_no, last_mitsuba))
+            rows = fastest_mitsuba(mitsuba_rounds)
+            run_ember(round_no, last_ember)
+        else:
+            run_ember(round_no, last_ember)
+            mitsuba_rounds.append(run_mitsuba(round_no, last_mitsuba))
+            rows = fastest_mitsuba(mitsuba_rounds)
+        if round_no == 0:
+            for r in mitsuba_rounds[0]:
+                last_mitsuba[r["integrator"]] = max(last_mitsuba.get(r["integrator"], 0), r["spp"])
+            for (build_suffix, _, _), sampler in ember_ladders:
+                _, rows0 = read_ember(build_suffix, sampler, 0)
+                last_ember[(build_suffix, sampler)] = max(int(r["spp"]) for r in rows0)
+
+    # 5. ember's ladders (one per sampler) against the same reference, plotted with Mitsuba's:
+    # each rung's fastest round in bench[_<build>][_<sampler>].csv; the plot is the first round's.
+    curves = {name: [(r["seconds"], r["rel_mse"]) for r in rows if r["integrator"] == label] for name, label in series}
+    for (build_suffix, ember, build_name), sampler in ember_ladders:
+        suffix = build_suffix + ("" if sampler == "independent" else f"_{sampler}")
+        header, ember_rows = read_ember(build_suffix, sampler, 0)
+        for round_no in range(1, args.rounds):
+            _, other = read_ember(build_suffix, sampler, round_no)
+            by_spp = {r["spp"]: r for r in other}
+            for i, r in enumerate(ember_rows):
+                o = by_spp.get(r["spp"])
+                if o is not None and float(o["seconds"]) < float(r["seconds"]):
+                    ember_rows[i] = o
+        with open(os.path.join(args.out, f"bench{suffix}.csv"), "w") as fh:
+            fh.write(",".join(header) + "\n")
+            for r in ember_rows:
+                fh.write(",".join(r[h] for h in header) + "\n")
+        shutil.copy(os.path.join(ember_dir(build_suffix, sampler, 0), "bench.svg"),
+                    os.path.join(args.out, f"bench{suffix}.svg"))
         ember_pts = [(float(r["seconds"]), float(r["rel_mse"])) for r in ember_rows]
 
         # 6. Time ratios at equal error.
         say(f"\n## Time to equal relative MSE (ember `mis`, {sampler} sampler, {build_name})\n")
         say("ember `mis` time / Mitsuba time, interpolated linearly in log-log between ladder rungs "
             "on each curve's lower envelope (below 1: ember is faster); Mitsuba's rungs are timed "
-            "warm, at the sample count its sampler renders. Every relative MSE includes the reference's own noise "
+            "warm, at the sample count its sampler renders"
+            + (f"; each rung's time is the fastest of {args.rounds} rounds, run alternately" if args.rounds > 1 else "")
+            + ". Every relative MSE includes the reference's own noise "
             f"({ref_noise:.1e}), so only errors above 10 times that are listed.")
         say()
         say("| relative MSE | ember mis (s) | " + " | ".join(f"{v} (s) | ratio" for v, _ in series) + " |")

@@ -31,6 +31,9 @@ BUDGET="${BUDGET:-10}"
 MAX_SPP="${MAX_SPP:-65536}"
 EMBER_SAMPLERS="${EMBER_SAMPLERS:-independent,zsobol}"   # one ember ladder and table each
 MITSUBA_SAMPLERS="${MITSUBA_SAMPLERS:-independent}"      # e.g. independent,stratified,multijitter,orthogonal,ldsampler
+# Runs of every ladder, Mitsuba's and ember's first in turn, each rung keeping its fastest time
+# (this instance's speed drifts by 5-10% over minutes; see mitsuba_bench.py).
+ROUNDS="${ROUNDS:-2}"
 # What the llvm variants compile for: native (Dr.Jit's choice: 16 lanes with AVX-512) or avx2
 # (Haswell, 8 lanes: an AVX2 machine's code on this CPU; pair it with EMBER_NATIVE=1
 # EMBER_NATIVE_CPU=x86-64-v3 and an OUT of its own).
@@ -69,4 +72,5 @@ exec "$VENV/bin/python" "$HERE/mitsuba_bench.py" --ember "$EMBER" \
     --ref-spp "$REF_SPP" --mitsuba-ref-spp "$MITSUBA_REF_SPP" --splits "$SPLITS" \
     --budget "$BUDGET" --max-spp "$MAX_SPP" --ember-samplers "$EMBER_SAMPLERS" \
     --mitsuba-samplers "$MITSUBA_SAMPLERS" --out "$OUT" --llvm-target "$MITSUBA_LLVM_TARGET" \
+    --rounds "$ROUNDS" \
     ${EMBER_NATIVE_BIN:+--ember-native "$EMBER_NATIVE_BIN" --ember-native-name "target-cpu=$EMBER_NATIVE_CPU build"}
