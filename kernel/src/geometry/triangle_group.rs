@@ -315,22 +315,8 @@ macro_rules! triangle_group {
                 }
 
                 /// [`Self::intersect`] in the lanes `L` of the instruction set `isa`
-                /// ([`crate::simd`]): the same hits, bit for bit.
-                #[inline(always)]
-                #[must_use]
-                pub fn intersect_in<L: Lanes<GROUP_WIDTH>>(
-                    &self,
-                    isa: L::Isa,
-                    ray: &WatertightRay,
-                    t_max: f32,
-                    lanes: u32,
-                ) -> GroupHits {
-                    let mut hits = GroupHits::NONE;
-                    self.intersect_into::<L>(isa, ray, t_max, lanes, &mut hits);
-                    hits
-                }
-
-                /// [`Self::intersect_in`] written to `hits` (see `watertight_lanes` for why).
+                /// ([`crate::simd`]), written to `hits` (not returned: `watertight_lanes` says
+                /// why): the same hits, bit for bit.
                 #[inline(always)]
                 pub fn intersect_into<L: Lanes<GROUP_WIDTH>>(
                     &self,
