@@ -107,6 +107,13 @@ pub trait Lanes<const W: usize>:
     fn select(mask: Self, a: Self, b: Self) -> Self {
         (mask & a) | (!mask & b)
     }
+    /// Lane `l` is lane `index[l] % W` of `self`: a gather from a table of at most `W` entries
+    /// held in lanes, bits moved, not rounded (one `vpermps` with AVX2).
+    #[inline(always)]
+    fn permute(self, isa: Self::Isa, index: &[u32; W]) -> Self {
+        let a = self.to_array();
+        Self::new(isa, core::array::from_fn(|l| a[index[l] as usize % W]))
+    }
     /// `self` moved one ulp the way `o` points: [`crate::math::next_float_up`] where `o > 0`,
     /// [`crate::math::next_float_down`] where `o < 0`, `self` elsewhere (how a ray origin is
     /// rounded away from its surface); lane by lane in the scalar functions unless the lanes
@@ -285,10 +292,10 @@ mod avx {
     use core::arch::x86_64::{
         __m256, _mm256_add_epi32, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256,
         _mm256_castps_si256, _mm256_castsi256_ps, _mm256_cmp_ps, _mm256_div_ps, _mm256_loadu_ps,
-        _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_or_ps,
-        _mm256_set1_epi32, _mm256_set1_ps, _mm256_sqrt_ps, _mm256_storeu_ps, _mm256_sub_epi32,
-        _mm256_sub_ps, _mm256_xor_ps, _CMP_EQ_OQ, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
-        _CMP_NEQ_UQ,
+        _mm256_loadu_si256, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps,
+        _mm256_or_ps, _mm256_permutevar8x32_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_sqrt_ps,
+        _mm256_storeu_ps, _mm256_sub_epi32, _mm256_sub_ps, _mm256_xor_ps, _CMP_EQ_OQ, _CMP_GE_OQ,
+        _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ,
     };
     use core::arch::x86_64::{
         __m512, _mm512_add_ps, _mm512_and_ps, _mm512_castps256_ps512, _mm512_castps_si512,
@@ -641,6 +648,17 @@ mod avx {
             unsafe { _mm256_movemask_ps(self.0) as u32 }
         }
 
+        #[inline(always)]
+        fn permute(self, _: T, index: &[u32; 8]) -> Self {
+            // SAFETY: an `Avx8` exists only where x86-64-v3 (AVX2) was found (module docs);
+            // the load reads the 32 bytes of `index`. `vpermps` uses the low three bits of
+            // each index: `index[l] % 8`.
+            Self::wrap(unsafe {
+                let index = _mm256_loadu_si256(index.as_ptr().cast());
+                _mm256_permutevar8x32_ps(self.0, index)
+            })
+        }
+
         comparisons!();
 
         #[inline(always)]
@@ -938,6 +956,18 @@ mod tests {
                     "round_away",
                     x.round_away(avx, y),
                     p.round_away(Baseline, q),
+                );
+                // Indices past the lanes wrap (`vpermps` reads the low three bits).
+                let index: [u32; 8] = core::array::from_fn(|l| (l * stride + shift) as u32 % 19);
+                same(
+                    "permute",
+                    x.permute(avx, &index),
+                    p.permute(Baseline, &index),
+                );
+                assert_eq!(
+                    bits(x.permute(avx, &index).to_array()),
+                    index.map(|i| a[i as usize % 8].to_bits()),
+                    "permute {a:?} by {index:?}"
                 );
                 // The lanes give the scalar code's bits.
                 let scalar = a.map(crate::math::sqrt).map(f32::to_bits);

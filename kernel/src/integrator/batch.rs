@@ -42,10 +42,11 @@
 //!   threads, 3 alternating runs): 3.14–3.16 s against the one-sample loop's 3.81–3.89 s with
 //!   MIS's roulette, 5.48–5.60 against 6.43–6.52 with roulette off, identical PLY data.
 //!
-//! Still one lane at a time: the emitter search and the gathers of triangle data (a lane each),
-//! the sine and cosine of the disk warp (`libm`'s), the arrival at the next vertex (its
-//! emission and BSDF), the ray queries, and every non-diffuse BSDF (Phong and mixtures with a
-//! lobe, conductors, dielectrics).
+//! The emitters of a scene with at most eight emitter triangles are a table held in lanes,
+//! made once per call ([`EmitterTable`]); with more, each lane gathers its emitter's triangle.
+//! Still one lane at a time: the gathers of the surface interactions' triangle data, the
+//! arrival at the next vertex (its emission and BSDF), the ray queries, and every non-diffuse
+//! BSDF (Phong and mixtures with a lobe, conductors, dielectrics).
 
 use super::path::{li_path, NextRay, PathState, ShadowQuery};
 use super::path_lanes::{
@@ -54,6 +55,7 @@ use super::path_lanes::{
 use super::{dims, PathSettings, PathStrategy, PixelStats, SampleResult};
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
+use crate::emitter::EmitterTable;
 use crate::geometry::Ray;
 use crate::math::SolidAnglePdf;
 use crate::sampler::{
@@ -771,6 +773,12 @@ impl<O: Origin> Job<'_, '_, O> {
     ) {
         let end = first.saturating_add(count);
         let mut start = first;
+        // Made once for the call's batches (a lane stage's worth of work).
+        let emitters = if end - first >= MIN_LANES as u32 {
+            EmitterTable::new(isa, self.scene)
+        } else {
+            None
+        };
         while start < end {
             let n = (end - start).min(BATCH as u32) as usize;
             if n < MIN_LANES {
@@ -782,7 +790,7 @@ impl<O: Origin> Job<'_, '_, O> {
                 }
                 break;
             }
-            let results = self.batch(isa, pixel, start, n);
+            let results = self.batch(isa, pixel, start, n, emitters.as_ref());
             for r in &results[..n] {
                 add(r);
             }
@@ -798,6 +806,7 @@ impl<O: Origin> Job<'_, '_, O> {
         pixel: &mut P,
         start: u32,
         n: usize,
+        emitters: Option<&EmitterTable<I::Eight>>,
     ) -> [SampleResult; BATCH] {
         let Self {
             strategy,
@@ -876,6 +885,7 @@ impl<O: Origin> Job<'_, '_, O> {
                 next_event_diffuse(
                     isa,
                     scene,
+                    emitters,
                     vertex,
                     vector,
                     &values[dims::LIGHT_SELECT as usize],

@@ -10,15 +10,16 @@
 //! [`PathState::scatter`] with `BsdfView::sample` and `Diffuse::sample`), each the correctly
 //! rounded IEEE operation, comparisons written so that NaNs fall on the side the scalar code's
 //! fall, glam's `Vec3` methods as glam writes them ([`V3`]). What has no lane instruction runs
-//! lane by lane in the scalar code's own functions: the emitter sample (a search of the CDF and
-//! a gather of its triangle), the sine and cosine of the disk warp, and the one-ulp steps of
-//! the ray origins. tests/tests/batched.rs compares whole renders with the one-path loop's bit
-//! for bit.
+//! lane by lane in the scalar code's own functions: the search of an emitter CDF of more than
+//! 16 entries and the gather of the emitter's triangle where there are more than eight
+//! (`crate::emitter::EmitterTable`), the sine and cosine of angles past 9π/4, and the one-ulp
+//! steps of the ray origins. tests/tests/batched.rs compares whole renders with the one-path
+//! loop's bit for bit.
 
 use super::path::{PathState, Roulette};
 use super::PathSettings;
 use crate::bsdf::{Bsdf, SurfaceBsdf};
-use crate::emitter::sample_emitter_lanes;
+use crate::emitter::{sample_emitter_lanes, sample_emitter_table, EmitterTable};
 use crate::math::{sin_cos_lanes, INV_PI};
 use crate::scene::SceneView;
 use crate::simd::{Isa, Lanes};
@@ -224,13 +225,16 @@ fn offset_ray_origin<L: Lanes<N>>(
 }
 
 /// Next-event estimation at the diffuse vertices of `lanes` under MIS, in lanes: what
-/// [`PathState::light`] computes there, with the emitter numbers `u_select` and `u_light`.
-/// Writes each lane's shadow ray and the light it brings to `out`, and returns the lanes
-/// that have one (bits).
+/// [`PathState::light`] computes there, with the emitter numbers `u_select` and `u_light`,
+/// the emitters from the scene's [`EmitterTable`] where it has one (`emitters`). Writes each
+/// lane's shadow ray and the light it brings to `out`, and returns the lanes that have one
+/// (bits).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn next_event_diffuse<I: Isa>(
     isa: I,
     scene: &SceneView<'_>,
+    emitters: Option<&EmitterTable<I::Eight>>,
     v: &Vertex<I::Eight>,
     lanes: u32,
     u_select: &[f32; N],
@@ -238,7 +242,11 @@ pub(super) fn next_event_diffuse<I: Isa>(
     out: &mut ShadowLanes,
 ) -> u32 {
     type L<I> = <I as Isa>::Eight;
-    let Some((es, sampled)) = sample_emitter_lanes(isa, scene, lanes, u_select, u_light) else {
+    let sample = match emitters {
+        Some(table) => sample_emitter_table(isa, scene, table, lanes, u_select, u_light),
+        None => sample_emitter_lanes(isa, scene, lanes, u_select, u_light),
+    };
+    let Some((es, sampled)) = sample else {
         return 0;
     };
     let zero = L::<I>::splat(isa, 0.0);
