@@ -756,7 +756,8 @@ mod tests {
                 checked += run_each_isa(&scene, lanes, &u_select, &u_pos, check);
             }
         }
-        assert!(checked > 10_000, "{checked}");
+        // 7,735 lanes with the baseline's lanes alone (aarch64, wasm32), more with AVX.
+        assert!(checked > 7_000, "{checked}");
     }
 
     /// The largest `f32` below 1.
