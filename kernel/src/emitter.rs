@@ -172,54 +172,8 @@ pub(crate) fn sample_emitter_lanes<I: Isa>(
     if lanes == 0 || cdf.is_empty() || cdf[cdf.len() - 1].is_nan() || cdf[cdf.len() - 1] <= 0.0 {
         return None;
     }
-    let total = cdf[cdf.len() - 1];
-    let mut upper = [0.0f32; LANES];
-    let mut lower = [0.0f32; LANES];
-    let mut triangle = [scene.emitter_triangles[0]; LANES];
     let index = find_intervals::<L<I>>(isa, cdf, u_select, lanes);
-    for l in lanes_of(lanes) {
-        let i = index[l];
-        upper[l] = cdf[i];
-        lower[l] = if i > 0 { cdf[i - 1] } else { 0.0 };
-        triangle[l] = scene.emitter_triangles[i];
-    }
-    let corners = triangle.map(|t| scene.triangles[t as usize]);
-    let vertex = |k: usize| V3::<L<I>>::new(isa, |l| scene.positions[corners[l][k] as usize]);
-    let normal = |k: usize| V3::<L<I>>::new(isa, |l| scene.normals[corners[l][k] as usize]);
-    let lane = |x: f32| L::<I>::splat(isa, x);
-    let (zero, one) = (lane(0.0), lane(1.0));
-    let prob = (L::<I>::new(isa, upper) - L::<I>::new(isa, lower)) / lane(total);
-    let (p0, p1, p2) = (vertex(0), vertex(1), vertex(2));
-    let (e1, e2) = (p1.sub(p0), p2.sub(p0));
-    let cross = e1.cross(e2);
-    let area = lane(0.5) * cross.dot(cross).sqrt();
-    // Refused where `area` or `prob` is NaN or not positive.
-    let ok = area.simd_gt(zero) & prob.simd_gt(zero);
-    // `warp::sample_uniform_triangle` and `triangle_point`.
-    let s = max_zero(one - L::<I>::new(isa, *u_pos[0]), zero).sqrt();
-    let (b1, b2) = (one - s, s * L::<I>::new(isa, *u_pos[1]));
-    let b0 = one - b1 - b2;
-    let (p, p_err) = triangle_point_lanes(isa, b1, b2, p0, e1, e2);
-    let ng = cross.div(lane(2.0) * area);
-    let (n, _) = normal(0)
-        .scale(b0)
-        .add(normal(1).scale(b1))
-        .add(normal(2).scale(b2))
-        .normalize_or_zero(one, zero);
-    let n = V3::select(n.is_zero(zero), ng, n);
-    let radiance = V3::<L<I>>::new(isa, |l| {
-        let material = scene.triangle_materials[triangle[l] as usize];
-        scene.material(material).emission
-    });
-    let samples = EmitterLanes {
-        p,
-        p_err,
-        ng,
-        n,
-        radiance,
-        pdf: prob / area,
-    };
-    Some((samples, ok.to_bitmask() & lanes))
+    Some(EmitterTable::<L<I>>::of_entries(isa, scene, &index).sample(isa, lanes, u_pos))
 }
 
 /// The emitter CDF's entries of a scene with at most [`LANES`] of them, entry `j` in lane
@@ -258,20 +212,27 @@ impl<L: Lanes<LANES>> EmitterTable<L> {
         if n == 0 || n > LANES || cdf[n - 1].is_nan() || cdf[n - 1] <= 0.0 {
             return None;
         }
-        // Entries past the last repeat it (no lane picks them: `find_intervals` < n).
-        let entry = |j: usize| j.min(n - 1);
-        let upper: [f32; LANES] = core::array::from_fn(|j| cdf[entry(j)]);
-        let lower: [f32; LANES] =
-            core::array::from_fn(|j| if entry(j) > 0 { cdf[entry(j) - 1] } else { 0.0 });
-        let triangles: [u32; LANES] = core::array::from_fn(|j| scene.emitter_triangles[entry(j)]);
+        // Lanes past the last entry repeat it (no lane picks them: `find_intervals` < n).
+        let entries = core::array::from_fn(|j| j.min(n - 1));
+        Some(Self::of_entries(isa, scene, &entries))
+    }
+
+    /// Lane `l` holding the CDF entry `entries[l]` of `scene` (each below the CDF's length,
+    /// whose last entry is positive).
+    #[inline(always)]
+    fn of_entries(isa: L::Isa, scene: &SceneView<'_>, entries: &[usize; LANES]) -> Self {
+        let cdf = scene.emitter_cdf;
+        let upper: [f32; LANES] = entries.map(|i| cdf[i]);
+        let lower: [f32; LANES] = entries.map(|i| if i > 0 { cdf[i - 1] } else { 0.0 });
+        let triangles: [u32; LANES] = entries.map(|i| scene.emitter_triangles[i]);
         let corners = triangles.map(|t| scene.triangles[t as usize]);
         let vertex = |k: usize| V3::<L>::new(isa, |j| scene.positions[corners[j][k] as usize]);
         let normal = |k: usize| V3::<L>::new(isa, |j| scene.normals[corners[j][k] as usize]);
         let (p0, p1, p2) = (vertex(0), vertex(1), vertex(2));
         let (e1, e2) = (p1.sub(p0), p2.sub(p0));
         let cross = e1.cross(e2);
-        let total = L::splat(isa, cdf[n - 1]);
-        Some(Self {
+        let total = L::splat(isa, cdf[cdf.len() - 1]);
+        Self {
             p0,
             e1,
             e2,
@@ -283,7 +244,67 @@ impl<L: Lanes<LANES>> EmitterTable<L> {
                 scene.material(material).emission
             }),
             prob: (L::new(isa, upper) - L::new(isa, lower)) / total,
-        })
+        }
+    }
+
+    /// Lane `l` holding entry `index[l]` (below [`LANES`]) of the table.
+    #[inline(always)]
+    fn permuted(&self, isa: L::Isa, index: &[u32; LANES]) -> Self {
+        let pick = |v: L| v.permute(isa, index);
+        let pick3 = |v: &V3<L>| V3 {
+            x: pick(v.x),
+            y: pick(v.y),
+            z: pick(v.z),
+        };
+        Self {
+            p0: pick3(&self.p0),
+            e1: pick3(&self.e1),
+            e2: pick3(&self.e2),
+            cross: pick3(&self.cross),
+            area: pick(self.area),
+            // Spelt out: a closure given to `map` may be left out of line, outside the AVX
+            // function, and its lane operations become calls.
+            normals: [
+                pick3(&self.normals[0]),
+                pick3(&self.normals[1]),
+                pick3(&self.normals[2]),
+            ],
+            radiance: pick3(&self.radiance),
+            prob: pick(self.prob),
+        }
+    }
+
+    /// [`sample_emitter`]'s point on the triangle of each lane of `lanes`, from the numbers
+    /// `u_pos`, and the lanes that have one (a positive area and pick probability).
+    #[inline(always)]
+    fn sample(&self, isa: L::Isa, lanes: u32, u_pos: [&[f32; LANES]; 2]) -> (EmitterLanes<L>, u32) {
+        let lane = |x: f32| L::splat(isa, x);
+        let (zero, one) = (lane(0.0), lane(1.0));
+        let Self { area, prob, .. } = *self;
+        // Refused where `area` or `prob` is NaN or not positive.
+        let ok = area.simd_gt(zero) & prob.simd_gt(zero);
+        // `warp::sample_uniform_triangle` and `triangle_point`.
+        let s = max_zero(one - L::new(isa, *u_pos[0]), zero).sqrt();
+        let (b1, b2) = (one - s, s * L::new(isa, *u_pos[1]));
+        let b0 = one - b1 - b2;
+        let (p, p_err) = triangle_point_lanes(isa, b1, b2, self.p0, self.e1, self.e2);
+        let ng = self.cross.div(lane(2.0) * area);
+        let [n0, n1, n2] = self.normals;
+        let (n, _) = n0
+            .scale(b0)
+            .add(n1.scale(b1))
+            .add(n2.scale(b2))
+            .normalize_or_zero(one, zero);
+        let n = V3::select(n.is_zero(zero), ng, n);
+        let samples = EmitterLanes {
+            p,
+            p_err,
+            ng,
+            n,
+            radiance: self.radiance,
+            pdf: prob / area,
+        };
+        (samples, ok.to_bitmask() & lanes)
     }
 }
 
@@ -304,44 +325,7 @@ pub(crate) fn sample_emitter_table<I: Isa>(
     }
     let found = find_intervals::<L<I>>(isa, scene.emitter_cdf, u_select, lanes);
     let index = found.map(|i| i as u32);
-    let pick = |v: L<I>| v.permute(isa, &index);
-    let pick3 = |v: &V3<L<I>>| V3 {
-        x: pick(v.x),
-        y: pick(v.y),
-        z: pick(v.z),
-    };
-    let lane = |x: f32| L::<I>::splat(isa, x);
-    let (zero, one) = (lane(0.0), lane(1.0));
-    let (p0, e1, e2, cross) = (
-        pick3(&table.p0),
-        pick3(&table.e1),
-        pick3(&table.e2),
-        pick3(&table.cross),
-    );
-    let (area, prob) = (pick(table.area), pick(table.prob));
-    // Refused where `area` or `prob` is NaN or not positive.
-    let ok = area.simd_gt(zero) & prob.simd_gt(zero);
-    // `warp::sample_uniform_triangle` and `triangle_point`.
-    let s = max_zero(one - L::<I>::new(isa, *u_pos[0]), zero).sqrt();
-    let (b1, b2) = (one - s, s * L::<I>::new(isa, *u_pos[1]));
-    let b0 = one - b1 - b2;
-    let (p, p_err) = triangle_point_lanes(isa, b1, b2, p0, e1, e2);
-    let ng = cross.div(lane(2.0) * area);
-    let (n, _) = pick3(&table.normals[0])
-        .scale(b0)
-        .add(pick3(&table.normals[1]).scale(b1))
-        .add(pick3(&table.normals[2]).scale(b2))
-        .normalize_or_zero(one, zero);
-    let n = V3::select(n.is_zero(zero), ng, n);
-    let samples = EmitterLanes {
-        p,
-        p_err,
-        ng,
-        n,
-        radiance: pick3(&table.radiance),
-        pdf: prob / area,
-    };
-    Some((samples, ok.to_bitmask() & lanes))
+    Some(table.permuted(isa, &index).sample(isa, lanes, u_pos))
 }
 
 /// Light leaving an emitter, for paths traced from the lights ([`sample_le`]).
