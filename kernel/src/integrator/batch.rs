@@ -615,12 +615,11 @@ pub(super) struct CameraOrigin<'a> {
 }
 
 impl CameraOrigin<'_> {
-    /// The camera ray of sample number `j`, `pixel` started at it.
+    /// The camera ray of sample number `j` for its camera numbers `u` ([`dims::camera`]).
     #[inline(always)]
-    fn ray<P: PixelSamples>(&self, j: u32, pixel: &mut P) -> Ray {
+    fn ray(&self, j: u32, u: Vec2) -> Ray {
         let (k, _) = self.span.locate(j);
-        self.camera
-            .generate_ray(self.x.wrapping_add(k), self.y, dims::camera(pixel))
+        self.camera.generate_ray(self.x.wrapping_add(k), self.y, u)
     }
 }
 
@@ -667,10 +666,12 @@ impl Origin for CameraOrigin<'_> {
         seen: &mut [Rgb; BATCH],
         results: &mut [SampleResult; BATCH],
     ) -> u32 {
+        // Every lane's camera numbers in one draw: those `Self::ray` draws, the same bits.
+        let mut u = [[0.0; BATCH]; dims::CAMERA as usize];
+        pixel.draw_lanes::<2>(0, indices, used, I::LANE_HASHES, &mut u);
         let mut camera_rays = [Ray::new(Vec3::ZERO, Vec3::Z); BATCH];
         for lane in lanes_of(used) {
-            pixel.start_sample(indices[lane], 0);
-            camera_rays[lane] = self.ray(indices[lane], pixel);
+            camera_rays[lane] = self.ray(indices[lane], Vec2::new(u[0][lane], u[1][lane]));
             results[lane].rays += 1;
         }
         // A pixel's camera rays are nearly one ray: a packet can walk the tree once for them.
@@ -702,7 +703,7 @@ impl Origin for CameraOrigin<'_> {
         settings: &PathSettings,
         pixel: &mut P,
     ) -> SampleResult {
-        let ray = self.ray(index, pixel);
+        let ray = self.ray(index, dims::camera(pixel));
         let mut rays = 0;
         let l = li_path(scene, &ray, settings, strategy, pixel, &mut rays);
         SampleResult { l, rays }
