@@ -78,7 +78,14 @@ use glam::{Vec2, Vec3};
 /// next sample as soon as its path ended (its results reordered to sample order) kept 6.6 lanes
 /// live and cut the bounces by 27%, but was no faster (2026-12-07, the same EXRs): the lanes,
 /// at different bounces, draw different dimensions, and each lane's key and pixel digits had to
-/// be looked up instead of one per draw; that ate the saving.
+/// be looked up instead of one per draw; that ate the saving. Waves kept every lane at the
+/// same bounce instead (2026-12-07, AMD EPYC Zen 3 with AVX2, the same EXRs): four groups of
+/// eight lanes ran their bounces in step and, after each bounce, the live paths were packed
+/// into the fewest groups (a lane's whole state moved), over a row's pixels or a pixel's 32
+/// samples. That took 25% of the group bounces and 3% of the instructions away (679 k to
+/// 512 k bounces, Cornell box, 256², 16 spp), but no time: 0.99 and 1.02 times the batches'
+/// (medians of 12 alternating pairs); the moves, the larger frame and the row runs' sampler
+/// ate it.
 pub const BATCH: usize = 8;
 
 /// The fewest samples a batch runs in lanes: fewer (a call of fewer samples, or the last of a
