@@ -289,13 +289,7 @@ impl<L: Lanes<LANES>> EmitterTable<L> {
         let b0 = one - b1 - b2;
         let (p, p_err) = triangle_point_lanes(isa, b1, b2, self.p0, self.e1, self.e2);
         let ng = self.cross.div(lane(2.0) * area);
-        let [n0, n1, n2] = self.normals;
-        let (n, _) = n0
-            .scale(b0)
-            .add(n1.scale(b1))
-            .add(n2.scale(b2))
-            .normalize_or_zero(one, zero);
-        let n = V3::select(n.is_zero(zero), ng, n);
+        let n = V3::interpolated_normal(self.normals, [b0, b1, b2], ng, one, zero);
         let samples = EmitterLanes {
             p,
             p_err,

@@ -191,13 +191,8 @@ impl SceneView<'_> {
         let inside = b0.fast_min(b1).fast_min(b2).simd_ge(lane(1.01) * bound);
         let lanes_done = (degenerate | inside).to_bitmask() & live;
         // The shading normal, the geometric one where the vertex normals cancel.
-        let (n0, n1, n2) = (normal(0), normal(1), normal(2));
-        let (ns, _) = n0
-            .scale(b0)
-            .add(n1.scale(b1))
-            .add(n2.scale(b2))
-            .normalize_or_zero(one, zero);
-        let ns = V3::select(ns.is_zero(zero), ng, ns);
+        let normals = [normal(0), normal(1), normal(2)];
+        let ns = V3::interpolated_normal(normals, [b0, b1, b2], ng, one, zero);
         let up = V3::splat(isa, Vec3::Z);
         let n = V3::select(ns.is_zero(zero), up, ns);
         let (s, t) = frame_from_normal(isa, n);

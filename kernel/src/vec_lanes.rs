@@ -163,6 +163,18 @@ impl<L: Lanes<N>> V3<L> {
         }
     }
 
+    /// The vertex normals `n` interpolated at the barycentrics `b` and normalised, or `ng`
+    /// where they cancel, as the scalar code interpolates them (`n0 * b0 + n1 * b1 + n2 * b2`).
+    #[inline(always)]
+    pub fn interpolated_normal(n: [Self; 3], b: [L; 3], ng: Self, one: L, zero: L) -> Self {
+        let (ns, _) = n[0]
+            .scale(b[0])
+            .add(n[1].scale(b[1]))
+            .add(n[2].scale(b[2]))
+            .normalize_or_zero(one, zero);
+        Self::select(ns.is_zero(zero), ng, ns)
+    }
+
     /// glam's `normalize_or_zero` (`self · (1 / length)` where that reciprocal is finite and
     /// positive), and the length it divided by.
     #[inline(always)]
