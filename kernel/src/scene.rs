@@ -555,7 +555,7 @@ impl<'a> SceneView<'a> {
             // A leaf that goes on into the next group: both at once where the instruction set
             // has lanes for two (AVX-512), the second group's lanes above the first's, so that
             // the hits are offered in slot order all the same.
-            if lanes_end < end {
+            if I::PAIRS && lanes_end < end {
                 let pair_end = end.min(base + 2 * GROUP_WIDTH);
                 let second = (1u32 << (pair_end - lanes_end)) - 1;
                 let pair = [&groups[g], &groups[g + 1]];
