@@ -160,7 +160,12 @@ pub trait Isa: Copy {
     /// the second group's index kept the compiler from dropping that branch. Without it, 0.55%
     /// fewer instructions and 1.1% fewer mispredictions in cachegrind's model (AVX2, camera
     /// rays of `bench/embree`'s 1k-triangle sphere); time level in lockstep (0.99–1.07, every
-    /// interval including 1; AMD EPYC Zen 3, 2026-12-08).
+    /// interval including 1; AMD EPYC Zen 3, 2026-12-08). Tried there and not kept: AVX2 pairs
+    /// in two registers (a `Two<Avx8>` of sixteen lanes, the AVX-512 pair test's code), so
+    /// that the project's Cornell box, one leaf of four groups, runs two tests of two with one
+    /// early exit each: 18% fewer mispredictions but 4.7% more instructions in cachegrind's
+    /// model (96², 16 spp), renders 0.99–1.09 of this code's time (medians of 16 pairs) and
+    /// `bench/embree`'s Cornell box rays 0.92–1.02 in lockstep.
     const PAIRS: bool = false;
 
     /// The watertight test of two consecutive triangle groups at once, in lanes twice a

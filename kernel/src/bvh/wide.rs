@@ -537,8 +537,12 @@ impl WideBvh<'_> {
             // entries already pushed (no branch on the distances): in lockstep
             // (`bench/embree/lockstep.py`, 6 epochs of 4 rounds) 0.90 (0.87–0.98) of this
             // insertion's speed on the 1k sphere's camera rays, level on the other ray sets and
-            // on the Cornell box. An AVX2 network (`vpmaxud`, `vpermd`; some 40 instructions)
-            // is untried.
+            // on the Cornell box. Also dropped (2026-12-08, AMD EPYC Zen 3, AVX2): two entered
+            // children, 2.4 per node on the 1k sphere's camera rays, put in order by a select
+            // instead of this loop: 15% fewer mispredictions in cachegrind's model, but 0.95–1.01
+            // of this loop's speed in lockstep (1M sphere's camera rays 0.95, the Cornell box's
+            // 0.975–0.987). An AVX2 network (`vpmaxud`, `vpermd`; some 40 instructions) is
+            // untried.
             let base = sp;
             // The lanes entered, lowest first: one iteration per entered box rather than a
             // branch per lane on the mask (that branch was the traversal's costliest
